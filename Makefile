@@ -1,0 +1,34 @@
+# lomanip: `make demo` runs the main job, `make test` runs the tests. Both set up first.
+SHELL := /bin/bash
+VENV := .venv
+PY := $(VENV)/bin/python
+# Keep DDS on this machine unless the user explicitly asks for more.
+export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
+export MUJOCO_GL ?= egl
+export PYTHONUNBUFFERED := 1
+
+.PHONY: setup demo test test-all bench bench-to clean help
+
+help:
+	@echo "make setup   - idempotent set-up: apt packages (as root), .venv, interfaces, lomanip packages"
+	@echo "make demo    - run the main job (see README)"
+	@echo "make test    - run the test suite (unit + graph tests; heavy cases are in the benchmarks)"
+	@echo "make bench   - run the benchmarks and print their figures"
+
+setup:
+	@tools/setup.sh
+
+demo: setup
+	$(VENV)/bin/lomanip demo
+
+test: setup
+	$(PY) -m pytest -q tests
+
+test-all: setup
+	$(PY) -m pytest -q -m "slow or not slow" tests
+
+bench: setup
+	$(PY) tools/bench_graph.py
+
+clean:
+	rm -rf build runs .pytest_cache

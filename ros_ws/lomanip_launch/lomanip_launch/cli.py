@@ -1,0 +1,202 @@
+"""The `lomanip` command: start the graph, record it, summarise bags, run the demo.
+
+    lomanip up [--scenario s1_basket] [--set box_mass=5.0] [--record runs/bag] [--duration 10]
+    lomanip bag info runs/bag
+    lomanip demo
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+import time
+from datetime import datetime
+from pathlib import Path
+
+import yaml
+
+from lomanip_launch.environment import apply_to_current_process, default_params_file, lomanip_environment
+from lomanip_launch.process_graph import GraphError, NodeSpec, ProcessGraph
+
+EXIT_USAGE = 2
+EXIT_GRAPH = 3
+
+
+class UsageError(ValueError):
+    """Bad command-line input; reported as one line and exit code 2."""
+
+
+def _parse_overrides(items: list[str]) -> dict:
+    overrides = {}
+    for item in items:
+        if "=" not in item:
+            raise UsageError(f"--set expects KEY=VALUE, got {item!r}")
+        key, value = item.split("=", 1)
+        overrides[key.strip()] = yaml.safe_load(value)
+    return overrides
+
+
+def _check_params_file(path: Path) -> dict:
+    if not path.is_file():
+        raise UsageError(f"parameter file {path} does not exist")
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" line {mark.line + 1}" if mark is not None else ""
+        raise UsageError(f"parameter file {path} is not valid YAML ({where.strip() or 'parse error'}: "
+                         f"{getattr(exc, 'problem', exc)})") from exc
+    if not isinstance(data, dict) or not all(isinstance(v, dict) and "ros__parameters" in v
+                                             for v in data.values()):
+        raise UsageError(f"parameter file {path} must map node names to {{ros__parameters: {{...}}}}")
+    return data
+
+
+def _validate_scenario(name: str, overrides: dict) -> None:
+    from lomanip_sim.scenario import ScenarioError, load_scenario
+
+    try:
+        load_scenario(name, overrides or None)
+    except ScenarioError as exc:
+        raise UsageError(str(exc)) from exc
+
+
+def build_graph(args: argparse.Namespace, run_dir: Path) -> ProcessGraph:
+    params_file = Path(args.params)
+    params = _check_params_file(params_file)
+    sim_params = params.get("lomanip_sim", {}).get("ros__parameters", {})
+    scenario = args.scenario or sim_params.get("scenario", "s1_basket")
+    overrides = _parse_overrides(args.set or [])
+    _validate_scenario(scenario, overrides)
+    python = sys.executable
+    ros_args = ["--ros-args", "--params-file", str(params_file), "-p", f"scenario:={scenario}"]
+    if overrides:
+        ros_args += ["-p", f"scenario_overrides:={yaml.safe_dump(overrides, default_flow_style=True).strip()}"]
+    specs = [NodeSpec("lomanip_sim", [python, "-m", "lomanip_sim.sim_node", *ros_args])]
+    if args.record:
+        bag = Path(args.record)
+        if bag.exists():
+            raise UsageError(f"bag folder {bag} already exists; choose a new one")
+        specs.append(NodeSpec("lomanip_recorder", [python, "-m", "lomanip_launch.recorder_node", str(bag)]))
+    return ProcessGraph(specs, lomanip_environment(), run_dir / "logs")
+
+
+def _ros_node_names():
+    """A readiness probe: the names of the nodes currently in the ROS graph."""
+    import rclpy
+
+    apply_to_current_process()
+    rclpy.init()
+    probe = rclpy.create_node("lomanip_orchestrator")
+
+    def names() -> set[str]:
+        rclpy.spin_once(probe, timeout_sec=0.05)
+        return {name for name, _ in probe.get_node_names_and_namespaces()}
+
+    def close() -> None:
+        probe.destroy_node()
+        rclpy.try_shutdown()
+
+    return names, close
+
+
+def run_graph(graph: ProcessGraph, duration: float | None, ready_timeout: float = 60.0,
+              on_ready=None) -> int:
+    """Start, wait for every node, run until Ctrl-C / duration / a node dies, stop everything."""
+    stop = {"sig": None}
+
+    def handler(signum, _frame):
+        stop["sig"] = signum
+
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    names, close_probe = _ros_node_names()
+    code = 0
+    try:
+        graph.start()
+        graph.wait_ready(names, ready_timeout)
+        print("[lomanip] graph is up:\n  " + "\n  ".join(graph.status_lines()), flush=True)
+        if on_ready is not None:
+            on_ready()
+        end = time.monotonic() + duration if duration else None
+        while stop["sig"] is None and (end is None or time.monotonic() < end):
+            graph.check()
+            time.sleep(0.2)
+        if stop["sig"] is not None:
+            print(f"[lomanip] {signal.Signals(stop['sig']).name} received, stopping", flush=True)
+    except GraphError as exc:
+        print(f"[lomanip] error: {exc}", file=sys.stderr, flush=True)
+        code = EXIT_GRAPH
+    finally:
+        graph.shutdown()
+        close_probe()
+        for s, h in previous.items():
+            signal.signal(s, h)
+        print("[lomanip] stopped:\n  " + "\n  ".join(graph.status_lines()), flush=True)
+    return code
+
+
+def cmd_up(args: argparse.Namespace) -> int:
+    run_dir = Path(args.run_dir) / datetime.now().strftime("%Y%m%d-%H%M%S")
+    graph = build_graph(args, run_dir)
+    return run_graph(graph, args.duration)
+
+
+def cmd_bag_info(args: argparse.Namespace) -> int:
+    from lomanip_launch.bag import BagError, summarize_bag
+
+    try:
+        print(summarize_bag(Path(args.bag)).format())
+    except BagError as exc:
+        raise UsageError(str(exc)) from exc
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    from lomanip_launch.demo import run_demo
+
+    return run_demo(args)
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="lomanip", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    def graph_options(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--scenario", help="s1_basket or s2_trolley (default: from the params file)")
+        p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                       help="override a scenario parameter, e.g. --set box_mass=5.0 (repeatable)")
+        p.add_argument("--params", default=str(default_params_file()), help="ROS 2 parameter file")
+        p.add_argument("--record", metavar="DIR", help="record every lomanip topic to this bag folder")
+        p.add_argument("--run-dir", default="runs", help="where logs and outputs go")
+
+    up = sub.add_parser("up", help="start the graph and keep it running")
+    graph_options(up)
+    up.add_argument("--duration", type=float, help="stop after this many seconds")
+    up.set_defaults(func=cmd_up)
+
+    bag = sub.add_parser("bag", help="bag tools")
+    bag_sub = bag.add_subparsers(dest="bag_command", required=True)
+    info = bag_sub.add_parser("info", help="print topics, types, counts and duration of a bag")
+    info.add_argument("bag")
+    info.set_defaults(func=cmd_bag_info)
+
+    demo = sub.add_parser("demo", help="the main job (see README)")
+    graph_options(demo)
+    demo.add_argument("--duration", type=float, default=10.0, help="seconds to record")
+    demo.set_defaults(func=cmd_demo)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = make_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except UsageError as exc:
+        print(f"lomanip: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Perception: prompts and RGB-D to 3D contacts per subtask."""

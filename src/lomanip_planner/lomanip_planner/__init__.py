@@ -1,0 +1,1 @@
+"""Retargeting, keyframes, contact schedule and the plan service."""

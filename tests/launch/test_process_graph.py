@@ -1,0 +1,58 @@
+"""The orchestrator's process handling, with plain Python processes standing in for nodes."""
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+
+import pytest
+
+from lomanip_launch.process_graph import GraphError, NodeSpec, ProcessGraph
+
+SLEEPER = [sys.executable, "-c", "import time\nwhile True: time.sleep(0.1)"]
+# Ignores SIGINT, like a hung node: the graph must escalate to SIGTERM.
+STUBBORN = [sys.executable, "-c",
+            "import signal, time\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\nwhile True: time.sleep(0.1)"]
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # A zombie is dead for our purposes.
+    with open(f"/proc/{pid}/stat") as f:
+        return f.read().split()[2] != "Z"
+
+
+def test_a_dying_node_is_reported_and_the_rest_are_stopped(tmp_path):
+    graph = ProcessGraph([NodeSpec("a", SLEEPER), NodeSpec("b", STUBBORN)], dict(os.environ), tmp_path, echo=None)
+    graph.start()
+    try:
+        graph.wait_ready(lambda: {"a", "b"}, timeout=5)
+        victim = graph.nodes[0].process
+        victim.send_signal(signal.SIGKILL)
+        victim.wait(5)
+        with pytest.raises(GraphError, match="node a exited"):
+            graph.check()
+    finally:
+        graph.shutdown(grace=1.0)
+    assert not any(_alive(n.process.pid) for n in graph.nodes)
+
+
+def test_wait_ready_times_out_with_the_missing_names(tmp_path):
+    graph = ProcessGraph([NodeSpec("a", SLEEPER), NodeSpec("b", SLEEPER)], dict(os.environ), tmp_path, echo=None)
+    graph.start()
+    try:
+        t0 = time.monotonic()
+        with pytest.raises(GraphError, match="waiting for: b"):
+            graph.wait_ready(lambda: {"a"}, timeout=1.0)
+        assert time.monotonic() - t0 < 3
+    finally:
+        graph.shutdown(grace=1.0)
+
+
+def test_duplicate_names_are_refused(tmp_path):
+    with pytest.raises(GraphError, match="duplicate"):
+        ProcessGraph([NodeSpec("a", SLEEPER), NodeSpec("a", SLEEPER)], {}, tmp_path)
