@@ -12,7 +12,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def test_env() -> dict[str, str]:
+def graph_env() -> dict[str, str]:
     env = dict(os.environ)  # conftest set LOCALHOST discovery and our own ROS_DOMAIN_ID
     paths = [str(ROOT / p) for p in ("src/lomanip_sim", "src/lomanip_to", "src/lomanip_perception",
                                      "src/lomanip_planner", "ros_ws/lomanip_launch")]
@@ -24,7 +24,7 @@ def test_env() -> dict[str, str]:
 def ros_process(args: list[str], log_path: Path):
     """Run `python -m ...` as its own process group; SIGINT it (then kill) on exit."""
     log = open(log_path, "w")
-    proc = subprocess.Popen([sys.executable, *args], env=test_env(), stdout=log, stderr=subprocess.STDOUT,
+    proc = subprocess.Popen([sys.executable, *args], env=graph_env(), stdout=log, stderr=subprocess.STDOUT,
                             start_new_session=True)
     try:
         yield proc

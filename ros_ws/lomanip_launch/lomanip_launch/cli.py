@@ -98,6 +98,16 @@ def _ros_node_names():
         probe.destroy_node()
         rclpy.try_shutdown()
 
+    def recorder_subscribed(patterns: tuple[str, ...]) -> bool:
+        """True once every published topic the recorder should record has a subscriber."""
+        from lomanip_launch.recorder_node import should_record
+
+        rclpy.spin_once(probe, timeout_sec=0.05)
+        topics = [t for t, _ in probe.get_topic_names_and_types() if should_record(t, patterns)]
+        return bool(topics) and all(probe.count_subscribers(t) > 0 for t in topics
+                                    if probe.count_publishers(t) > 0)
+
+    names.recorder_subscribed = recorder_subscribed
     return names, close
 
 
@@ -115,6 +125,13 @@ def run_graph(graph: ProcessGraph, duration: float | None, ready_timeout: float 
     try:
         graph.start()
         graph.wait_ready(names, ready_timeout)
+        if any(n.spec.name == "lomanip_recorder" for n in graph.nodes):
+            from lomanip_launch.recorder_node import DEFAULT_TOPICS
+
+            deadline = time.monotonic() + 15.0   # the recorder subscribes as topics appear
+            while not names.recorder_subscribed(DEFAULT_TOPICS) and time.monotonic() < deadline:
+                graph.check()
+                time.sleep(0.2)
         print("[lomanip] graph is up:\n  " + "\n  ".join(graph.status_lines()), flush=True)
         if on_ready is not None:
             on_ready()

@@ -40,9 +40,11 @@ def save_camera_pngs(bag: Path, out_dir: Path) -> list[Path]:
             depth = np.frombuffer(msg.data, np.float32).reshape(msg.height, msg.width)
             finite = depth[np.isfinite(depth)]
             fig, ax = plt.subplots(figsize=(msg.width / 100, msg.height / 100 + 0.4), dpi=100)
-            im = ax.imshow(depth, cmap="viridis", vmin=float(finite.min()), vmax=float(np.percentile(finite, 99)))
-            fig.colorbar(im, ax=ax, label="depth [m]")
-            ax.set_title(f"{topic} (metres along the optical axis)")
+            near = float(finite.min())
+            far = min(float(np.percentile(finite, 90)), near + 8.0)  # the floor plane runs to the horizon
+            im = ax.imshow(depth, cmap="viridis_r", vmin=near, vmax=far)
+            fig.colorbar(im, ax=ax, label="depth along the optical axis [m]", extend="max")
+            ax.set_title(topic, fontsize=9)
             ax.axis("off")
             path = out_dir / "depth.png"
             fig.savefig(path, bbox_inches="tight")

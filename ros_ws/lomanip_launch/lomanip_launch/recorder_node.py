@@ -22,7 +22,10 @@ from lomanip_launch.ros_types import message_class
 DEFAULT_TOPICS = ("/lomanip/", "/joint_states", "/tf", "/tf_static", "/diagnostics")
 
 
-def _matches(topic: str, patterns: tuple[str, ...]) -> bool:
+def should_record(topic: str, patterns: tuple[str, ...]) -> bool:
+    """Exact names, or whole namespaces for patterns ending in '/'; never action internals."""
+    if "/_action/" in topic:
+        return False
     return any(topic == p or (p.endswith("/") and topic.startswith(p)) for p in patterns)
 
 
@@ -38,7 +41,7 @@ class RecorderNode(Node):
 
     def discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():
-            if self.writer.has_topic(topic) or "/_action/" in topic or not _matches(topic, self.topics):
+            if self.writer.has_topic(topic) or not should_record(topic, self.topics):
                 continue
             publishers = self.get_publishers_info_by_topic(topic)
             if not publishers:

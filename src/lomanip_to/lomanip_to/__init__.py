@@ -1,0 +1,1 @@
+"""Whole-body trajectory optimisation for the G1: centroidal dynamics with full kinematics."""

@@ -1,0 +1,199 @@
+"""Physical consistency checks of a TO result (reusable by tests, the benchmark and the node).
+
+Each check returns a float (worst value, SI units) plus where it happens; ``run_checks`` collects
+them with pass/fail against tolerances.  Penetration is the measure of DESIGN.md sec. 7: at each
+time the sum of negative signed distances between robot collision bodies (spheres, see
+``model.py``) and the objects / floor, plus robot self-collision pairs; intended contacts (a hand on
+the object it holds, a foot on the surface it stands on) are excluded.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .model import FEET, GRAVITY, HANDS, G1Model, rpy_rate_matrix, rpy_to_rot
+
+TOL = {
+    "friction_cone": 1e-3,  # N (after scaling), cone rows
+    "momentum_rate": 1e-2,  # N or N m
+    "foot_slip": 2e-3,  # m between consecutive stance knots
+    "penetration": 5e-3,  # m
+    "joint_limits": 1e-4,  # rad
+    "torque_ratio": 1.0,  # |tau| / tau_max
+}
+
+
+def sphere_box_distance(c, centre, R, half, r):
+    loc = R.T @ (np.asarray(c) - centre)
+    q = np.abs(loc) - half
+    return float(np.linalg.norm(np.maximum(q, 0)) + min(q.max(), 0.0) - r)
+
+
+def penetration_per_knot(model: G1Model, data, res):
+    """(sum of penetrations per knot (K,), max single penetration, its knot)."""
+    from .discretize import obj_prims_world, self_pairs
+
+    K = len(res.t_knots)
+    total = np.zeros(K)
+    worst, worst_k = 0.0, 0
+    sp = self_pairs(model)
+    for k in range(K):
+        cs = model.numeric(res.x_knots[k])["spheres"]
+        depth = []
+        for o in data.prob.objects:
+            if o.id in res.object_pose_knots:
+                pose = res.object_pose_knots[o.id][k]
+                prims = obj_prims_world(o, pose[:3], pose[3:])
+            else:
+                prims = obj_prims_world(o)
+            for s_idx, s in enumerate(model.spheres):
+                if not data._pair_enabled(k, s_idx, o.id):
+                    continue
+                for (c, R, he) in prims:
+                    d = sphere_box_distance(cs[s_idx], c, R, he, s.radius)
+                    if d < 0:
+                        depth.append(-d)
+        for s_idx, s in enumerate(model.spheres):
+            d = cs[s_idx][2] - s.radius  # floor
+            if d < 0:
+                depth.append(-d)
+        for (i, j) in sp:
+            d = np.linalg.norm(cs[i] - cs[j]) - model.spheres[i].radius - model.spheres[j].radius
+            if d < 0:
+                depth.append(-d)
+        total[k] = float(np.sum(depth)) if depth else 0.0
+        mx = max(depth) if depth else 0.0
+        if mx > worst:
+            worst, worst_k = mx, k
+    return total, worst, worst_k
+
+
+def friction_cone_violation(res, mu_foot=0.6, mu_hand=0.8):
+    """Worst violation (N) of the (exact, circular) friction cones; uses the contact normals."""
+    worst, where = 0.0, ("", 0.0)
+    for f in FEET:
+        C = res.corner_forces_knots[f]
+        for k in range(C.shape[0]):
+            for i in range(4):
+                fx, fy, fz = C[k, i]
+                v = max(-fz, np.hypot(fx, fy) - mu_foot * fz)
+                if v > worst:
+                    worst, where = v, (f, res.t_knots[k])
+    for h in HANDS:
+        F = res.forces_knots[h]
+        N = res.normals_knots[h]
+        for k in range(F.shape[0]):
+            if not np.any(F[k]):
+                continue
+            fn = float(F[k] @ N[k])
+            ft = np.linalg.norm(F[k] - fn * N[k])
+            v = max(-fn, ft - mu_hand * fn)
+            if v > worst:
+                worst, where = v, (h, res.t_knots[k])
+    return worst, where
+
+
+def momentum_rate_residual(model: G1Model, res):
+    """max over knots of |(h_{k+1}-h_k)/dt - (sum f_k + m g ; sum (p - c) x f_k + tau_k)| (N, N m).
+
+    Uses the knot centroidal momentum recomputed from (x, xd) with the model (not the solver's
+    own variables), so it checks the CMM consistency and Newton-Euler together."""
+    t = res.t_knots
+    K = len(t)
+    h = np.array([model.numeric(res.x_knots[k], res.xd_knots[k])["h"] for k in range(K)])
+    com = np.array([model.numeric(res.x_knots[k])["com"] for k in range(K)])
+    worst, wk = 0.0, 0
+    for k in range(K - 1):
+        dt = t[k + 1] - t[k]
+        F = model.mass * GRAVITY.copy()
+        T = np.zeros(3)
+        for limb in res.limbs:
+            F = F + res.forces_knots[limb][k]
+            T = T + np.cross(res.points_knots[limb][k] - com[k], res.forces_knots[limb][k]) + res.torques_knots[limb][k]
+        r = np.concatenate([(h[k + 1, :3] - h[k, :3]) / dt - F, (h[k + 1, 3:] - h[k, 3:]) / dt - T])
+        v = float(np.abs(r).max())
+        if v > worst:
+            worst, wk = v, k
+    return worst, float(t[wk])
+
+
+def foot_slip(res):
+    """Max displacement (m) of a foot sole centre between consecutive knots in contact."""
+    worst, where = 0.0, ("", 0.0)
+    for f in FEET:
+        P = res.points_knots[f]
+        obj = res.contact_objects_knots[f]
+        for k in range(len(obj) - 1):
+            if obj[k] and obj[k] == obj[k + 1]:
+                d = float(np.linalg.norm(P[k + 1] - P[k]))
+                if d > worst:
+                    worst, where = d, (f, res.t_knots[k])
+    return worst, where
+
+
+def joint_limit_violation(model: G1Model, res):
+    th = res.x_knots[:, 6:]
+    v = np.maximum(model.q_lower - th, th - model.q_upper)
+    k, j = np.unravel_index(np.argmax(v), v.shape)
+    return float(max(v.max(), 0.0)), (model.joint_names[j], float(res.t_knots[k]))
+
+
+def torque_ratio(model: G1Model, res):
+    """max |tau_j| / tau_max_j from Pinocchio RNEA with the contact wrenches (a posteriori)."""
+    t = res.t_knots
+    K = len(t)
+    worst, where = 0.0, ("", 0.0)
+    base_res = 0.0
+    for k in range(K):
+        if k == 0 or k == K - 1:
+            xdd = np.zeros(35)
+        else:
+            xdd = (res.xd_knots[k + 1] - res.xd_knots[k - 1]) / (t[k + 1] - t[k - 1])
+        tau, base = _rnea_with_moments(model, res, k, xdd)
+        ratio = np.abs(tau) / model.tau_max
+        j = int(np.argmax(ratio))
+        if ratio[j] > worst:
+            worst, where = float(ratio[j]), (model.joint_names[j], float(t[k]))
+        base_res = max(base_res, float(np.abs(base).max()))
+    return worst, where, base_res
+
+
+def _rnea_with_moments(model: G1Model, res, k, xdd):
+    import pinocchio as pin
+
+    m, d = model.pin_model, model.pin_data
+    x, xd = res.x_knots[k], res.xd_knots[k]
+    q = model.x_to_q(x)
+    v = model.xd_to_v(x, xd)
+    eps = 1e-6
+    a = (model.xd_to_v(x + eps * xd, xd + eps * xdd) - v) / eps
+    pin.forwardKinematics(m, d, q)
+    fext = [pin.Force.Zero() for _ in range(m.njoints)]
+    for limb in res.limbs:
+        j = model.limb_joint[limb]
+        oMi = d.oMi[j]
+        Rt = oMi.rotation.T
+        f_w = res.forces_knots[limb][k]
+        tau_w = res.torques_knots[limb][k] + np.cross(res.points_knots[limb][k] - oMi.translation, f_w)
+        fext[j] = fext[j] + pin.Force(Rt @ f_w, Rt @ tau_w)
+    tau = pin.rnea(m, d, q, v, a, fext)
+    return np.array(tau[6:]), np.array(tau[:6])
+
+
+def run_checks(model: G1Model, data, res) -> dict:
+    """All checks as {name: {"value", "where", "ok"}}."""
+    out = {}
+    v, w = friction_cone_violation(res, data.w["mu_foot"], data.w["mu_hand"])
+    out["friction_cone"] = {"value": v, "where": f"{w[0]} t={w[1]:.2f}", "ok": v <= TOL["friction_cone"] * model.mass * 9.81}
+    v, tt = momentum_rate_residual(model, res)
+    out["momentum_rate"] = {"value": v, "where": f"t={tt:.2f}", "ok": v <= TOL["momentum_rate"] * model.mass * 9.81}
+    v, w = foot_slip(res)
+    out["foot_slip"] = {"value": v, "where": f"{w[0]} t={w[1]:.2f}", "ok": v <= TOL["foot_slip"]}
+    pen = res.stats.max_penetration
+    out["penetration"] = {"value": pen, "where": f"t={res.stats.max_penetration_time:.2f}", "ok": pen <= TOL["penetration"]}
+    v, w = joint_limit_violation(model, res)
+    out["joint_limits"] = {"value": v, "where": f"{w[0]} t={w[1]:.2f}", "ok": v <= TOL["joint_limits"]}
+    v, w, base = torque_ratio(model, res)
+    out["torque_limits"] = {"value": v, "where": f"{w[0]} t={w[1]:.2f}", "ok": v <= TOL["torque_ratio"],
+                            "base_wrench_residual": base}
+    return out

@@ -1,0 +1,575 @@
+"""Discretisation: from a :class:`~lomanip_to.problem.Problem` to numbers: knot grid, bounds, parameters, warm start.
+
+Phase-wise sizing: each contact phase is split into knots at ``dt_stance`` / ``dt_walking``; knot
+k belongs to the phase containing [t_k, t_{k+1}).  Everything here is numpy; the symbolic side lives
+in ``transcription.py``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .model import FEET, HANDS, LIMBS, SOLE_CENTER, G1Model, rot_to_rpy, rpy_to_rot
+from .problem import FLOOR, STANCE, WALKING, Problem, SceneObject
+from .transcription import Structure, Window
+
+INF = np.inf
+
+DEFAULT_WEIGHTS = {
+    "w_post": 1.0, "w_xd": 0.05, "w_acc": 0.5, "w_force": 0.2, "w_st_com": 20.0, "w_st_vel": 10.0,
+    "w_kff": 5e2, "w_wk_base": 20.0, "w_upright": 20.0, "w_anchor": 1e3, "w_kfb_z": 100.0,
+    "w_kfb_th": 10.0, "w_slack": 1e2, "w_self": 1e3, "w_swing": 2e3, "swing_clearance": 0.06,
+    "w_pen": 1e4, "w_hom": 1e2, "w_obj_reg": 1.0, "w_goal": 1e3,
+    "mu_foot": 0.6, "mu_hand": 0.8, "mu_obj": 0.5, "self_margin": 0.0,
+    "pair_prefilter": 0.25,
+}
+
+
+@dataclass
+class Grid:
+    t: np.ndarray  # knot times (K)
+    phase: np.ndarray  # phase index per knot
+
+    @property
+    def K(self) -> int:
+        return len(self.t)
+
+
+def make_grid(prob: Problem) -> Grid:
+    ts, ph = [], []
+    for i, p in enumerate(prob.phases):
+        dt = prob.options.dt_walking if p.phase_type == WALKING else prob.options.dt_stance
+        n = max(1, int(math.ceil((p.end - p.start) / dt - 1e-9)))
+        for k in range(n):
+            ts.append(p.start + (p.end - p.start) * k / n)
+            ph.append(i)
+    ts.append(prob.phases[-1].end)
+    ph.append(len(prob.phases) - 1)
+    return Grid(np.array(ts), np.array(ph))
+
+
+def obj_prims_world(o: SceneObject, p=None, rpy=None):
+    """[(centre, R, half_extents)] of an object's primitives at pose (p, rpy) (default: its own)."""
+    p = np.asarray(o.position, float) if p is None else np.asarray(p, float)
+    R0 = rpy_to_rot(o.rpy() if rpy is None else np.asarray(rpy, float))
+    out = []
+    for pr in o.primitives:
+        Rl = rpy_to_rot(np.array([0, 0, pr.yaw]))
+        out.append((p + R0 @ np.asarray(pr.position, float), R0 @ Rl, pr.half_extents()))
+    return out
+
+
+def self_pairs(model: G1Model) -> tuple:
+    names = [s.name for s in model.spheres]
+    idx = {n: i for i, n in enumerate(names)}
+    pairs = []
+    for s in ("left", "right"):
+        for other in ("pelvis", "torso_0", f"{s}_thigh_0", f"{s}_thigh_1"):
+            pairs.append((idx[f"{s}_hand"], idx[other]))
+    for a in ("left_shin_0", "left_shin_1", "left_thigh_1"):
+        for b in ("right_shin_0", "right_shin_1", "right_thigh_1"):
+            pairs.append((idx[a], idx[b]))
+    pairs.append((idx["left_foot_0"], idx["right_foot_0"]))
+    pairs.append((idx["left_foot_1"], idx["right_foot_1"]))
+    return tuple(pairs)
+
+
+class ProblemData:
+    """All numeric arrays of one TO problem (bounds, parameters, warm start) + its structure."""
+
+    def __init__(self, prob: Problem, model: G1Model):
+        self.prob = prob
+        self.model = model
+        opt = prob.options
+        self.w = dict(DEFAULT_WEIGHTS)
+        self.w.update(opt.weights or {})
+        self.grid = make_grid(prob)
+        self.moving = prob.moving_object_ids()
+        self.midx = {oid: j for j, oid in enumerate(self.moving)}
+        self.x_init = np.asarray(prob.initial_configuration, float)
+        self._object_timeline()
+        self._warm_start_x()
+        self._choose_pairs()
+        self.structure = Structure(len(self.moving), tuple(s for s, _ in self.pairs),
+                                   self_pairs(model) if opt.self_collision else ())
+
+    # ------------------------------------------------------------------ object nominal poses
+    def _object_timeline(self):
+        """Nominal pose of every moving object at every knot (initial pose, then goals)."""
+        prob = self.prob
+        K = self.grid.K
+        self.obj_nom = {}
+        goals = {g.object_id: g for g in prob.placement_goals}
+        for oid in self.moving:
+            o = prob.object(oid)
+            pose = np.concatenate([np.asarray(o.position, float), o.rpy()])
+            traj = np.tile(pose, (K, 1))
+            # find moving intervals: contiguous phases where the object appears
+            cur = pose.copy()
+            k = 0
+            while k < K:
+                ph = prob.phases[self.grid.phase[k]]
+                if oid in ph.objects:
+                    k1 = k
+                    while k1 < K and oid in prob.phases[self.grid.phase[k1]].objects:
+                        k1 += 1
+                    end = cur.copy()
+                    g = goals.get(oid)
+                    t_end = self.grid.t[min(k1, K - 1)]
+                    if g is not None and (g.time is None or g.time <= t_end + 1e-9):
+                        end = np.concatenate([np.asarray(g.position, float), [0.0, 0.0, g.yaw]])
+                    for kk in range(k, min(k1 + 1, K)):
+                        s = (kk - k) / max(1, (k1 - k))
+                        traj[kk] = (1 - s) * cur + s * end
+                    cur = end
+                    k = k1 + 1
+                    traj[k:] = cur
+                else:
+                    traj[k] = cur
+                    k += 1
+            self.obj_nom[oid] = traj
+
+    def obj_mode(self, k: int, oid: str) -> str:
+        ph = self.prob.phases[self.grid.phase[k]]
+        mo = ph.objects.get(oid)
+        return "fixed" if mo is None else mo.mode
+
+    def contact(self, k: int, limb: str):
+        return self.prob.phases[self.grid.phase[k]].contacts.get(limb)
+
+    # ------------------------------------------------------------------ warm start / references
+    def _warm_start_x(self):
+        prob, K = self.prob, self.grid.K
+        opt = prob.options
+        kf_by_sub = {}
+        for kf in prob.keyframes:
+            kf_by_sub.setdefault(kf.subtask_index, kf)
+        self.kf_knots = {}
+        for kf in prob.keyframes:
+            t = prob.keyframe_time(kf)
+            self.kf_knots[int(np.argmin(np.abs(self.grid.t - t)))] = kf
+        X = np.tile(self.x_init, (K, 1))
+        if opt.use_keyframe_warm_start:
+            for k in range(K):
+                sub = prob.phases[self.grid.phase[k]].subtask_index
+                kf = kf_by_sub.get(sub)
+                if kf is not None:
+                    X[k] = kf.x()
+            X[0] = self.x_init
+        self.x_guess = X
+
+    def _choose_pairs(self):
+        """Minimal collision set: sphere groups from the options x object primitives whose
+        distance along the warm-start trajectory comes below ``pair_prefilter`` (heuristic)."""
+        prob, m = self.prob, self.model
+        groups = set(prob.options.collision_groups)
+        sph_idx = [i for i, s in enumerate(m.spheres) if s.group in groups]
+        # sphere centres along the warm start (and the initial configuration)
+        cs = []
+        for x in list(self.x_guess[:: max(1, self.grid.K // 25)]) + [self.x_init]:
+            cs.append(m.numeric(x)["spheres"])
+        cs = np.array(cs)  # T x S x 3
+        self.prims = []  # (object id, primitive index)
+        for o in prob.objects:
+            for pi in range(len(o.primitives)):
+                self.prims.append((o.id, pi))
+        pairs = []
+        thr = self.w["pair_prefilter"]
+        for (oid, pi) in self.prims:
+            o = prob.object(oid)
+            if oid in self.moving:
+                poses = self.obj_nom[oid][:: max(1, self.grid.K // 25)]
+            else:
+                poses = [np.concatenate([np.asarray(o.position, float), o.rpy()])]
+            for s in sph_idx:
+                r = m.spheres[s].radius
+                dmin = INF
+                for pose in poses:
+                    c, R, he = obj_prims_world(o, pose[:3], pose[3:])[pi]
+                    loc = (cs[:, s, :] - c) @ R
+                    q = np.abs(loc) - he
+                    d = np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0) - r
+                    dmin = min(dmin, float(d.min()))
+                if dmin < thr:
+                    pairs.append((s, (oid, pi)))
+        self.pairs = pairs
+
+    # ------------------------------------------------------------------ arrays
+    def fill(self, win: Window, expo: float, hard: bool, penalty: bool, homotopy: bool):
+        """Bounds (lbw, ubw: n_w x (K+1)), row bounds (lbg, ubg: n_g x K), params P (n_p x K), W0."""
+        prob, m, w = self.prob, self.model, self.w
+        opt = prob.options
+        K = self.grid.K
+        N = K - 1
+        W, P, Gl = win.W, win.P, win.G
+        lbw = np.full((W.n, K + 1), -INF)
+        ubw = np.full((W.n, K + 1), INF)
+        lbg = np.zeros((Gl.n, K))
+        ubg = np.zeros((Gl.n, K))
+        Pm = np.zeros((P.n, K))
+        t = self.grid.t
+
+        def setb(name, k, lo, hi):
+            lbw[W[name], k] = lo
+            ubw[W[name], k] = hi
+
+        def rows(name, k, lo, hi):
+            lbg[Gl[name], k] = lo
+            ubg[Gl[name], k] = hi
+
+        # ---------------- variable bounds
+        for k in range(K):
+            xl = np.full(35, -INF)
+            xu = np.full(35, INF)
+            xl[2], xu[2] = 0.2, 1.6
+            xl[3:5], xu[3:5] = -0.9, 0.9
+            xl[6:], xu[6:] = m.q_lower, m.q_upper
+            setb("x", k, xl, xu)
+            vmax = np.concatenate([np.full(6, 4.0), m.vel_max])
+            setb("xd", k, -vmax, vmax)
+            setb("comd", k, -3, 3)
+            setb("kk", k, -2, 2)
+            for f in FEET:
+                c = self.contact(k, f)
+                lo = np.zeros(12)
+                hi = np.zeros(12)
+                if c is not None:
+                    lo = np.tile([-2.0, -2.0, 0.0], 4)
+                    hi = np.tile([2.0, 2.0, 2.0], 4)
+                setb(f"u_{f}", k, lo, hi)
+            for h in HANDS:
+                c = self.contact(k, h)
+                a = 1.0 if c is not None else 0.0
+                setb(f"u_{h}", k, -a, a)
+            for oid, j in self.midx.items():
+                mode = self.obj_mode(k, oid)
+                prev = self.obj_mode(k - 1, oid) if k > 0 else "fixed"
+                if mode == "fixed" or prev == "fixed" or k == 0:
+                    setb(f"o{j}_vel", k, 0, 0)
+                else:
+                    setb(f"o{j}_vel", k, -3, 3)
+                if mode in ("supported", "rolling"):
+                    setb(f"o{j}_us", k, np.tile([-1, -1, 0.0], 4), np.tile([1, 1, 1.0], 4))
+                else:
+                    setb(f"o{j}_us", k, 0, 0)
+                if k == 0:
+                    o = prob.object(oid)
+                    pose0 = np.concatenate([np.asarray(o.position, float), o.rpy()])
+                    setb(f"o{j}_pose", k, pose0, pose0)
+            setb("slack", k, 0, INF if homotopy else 0)
+        for name in ("xd", "comd", "kk"):
+            setb(name, 0, 0, 0)
+            setb(name, N, 0, 0)
+        lbw[:, K] = 0
+        ubw[:, K] = 0
+
+        # ---------------- rows
+        # last window: integration rows off; momentum rows stay on against the (zero) dummy knot,
+        # i.e. the final knot is in static equilibrium (the motion ends at rest)
+        trans = ["kinematic integration", "CoM integration"]
+        for k in range(K):
+            last = k == N
+            for r in trans:
+                if last:
+                    rows(r, k, -INF, INF)
+            for f in FEET:
+                c = self.contact(k, f)
+                cn = self.contact(k + 1, f) if not last else None
+                if c is None:
+                    rows(f"{f} on surface", k, 0, INF)  # above ground
+                    rows(f"{f} orientation aligned with surface", k, -INF, INF)
+                    rows(f"{f} inside contact patch", k, -INF, INF)
+                else:
+                    he = self._patch_half(c)
+                    rows(f"{f} inside contact patch", k, -he, he)
+                if c is None or cn is None or cn.object_id != c.object_id:
+                    rows(f"{f} no slip", k, -INF, INF)
+                rows(f"{f} friction cone", k, 0, INF)
+            for h in HANDS:
+                if self.contact(k, h) is None:
+                    rows(f"{h} contact position", k, -INF, INF)
+                rows(f"{h} friction cone", k, 0, INF)
+            for oid, j in self.midx.items():
+                mode = self.obj_mode(k, oid)
+                if last:
+                    rows(f"o{j} kinematic integration", k, -INF, INF)
+                if mode in ("fixed", "attached"):
+                    rows(f"o{j} linear dynamics", k, -INF, INF)
+                    rows(f"o{j} angular dynamics", k, -INF, INF)
+                if mode not in ("supported", "rolling", "fixed"):
+                    rows(f"o{j} support contact (on surface, aligned)", k, -INF, INF)
+                rows(f"o{j} support friction cone", k, 0, INF)
+                if mode != "rolling":
+                    rows(f"o{j} rolling: no longitudinal wheel force", k, -INF, INF)
+                    rows(f"o{j} nonholonomic: no lateral slip", k, -INF, INF)
+                if mode != "attached":
+                    rows(f"o{j} attachment", k, -INF, INF)
+            for i, (s, (oid, pi)) in enumerate(self.pairs):
+                on = self._pair_enabled(k, s, oid)
+                rows(f"c{i} collision", k, 0 if (hard and on) else -INF, INF)
+                rows(f"c{i} homotopy surrogate", k, 0 if (homotopy and on) else -INF, INF)
+            for (a, b) in win.st.self_pairs:
+                rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
+
+        # ---------------- parameters
+        kf_sub = {kf.subtask_index: kf for kf in prob.keyframes}
+        for k in range(K):
+            ph = prob.phases[self.grid.phase[k]]
+            col = Pm[:, k]
+
+            def sp(name, val):
+                col[P[name]] = val
+
+            sp("dt", t[k + 1] - t[k] if k < N else t[N] - t[N - 1])
+            sp("w_stage", 1.0 / N)
+            sp("b_st", 1.0 if ph.phase_type == STANCE else 0.0)
+            for key in ("w_post", "w_xd", "w_acc", "w_force", "w_st_com", "w_st_vel", "w_wk_base",
+                        "w_upright", "w_slack", "w_self", "mu_hand", "self_margin"):
+                sp(key, w[key])
+            sp("mu_foot", w["mu_foot"] / math.sqrt(2))  # inner pyramid of the cone
+            sp("mu_hand", w["mu_hand"] / math.sqrt(2))
+            sp("mu_obj", w["mu_obj"] / math.sqrt(2))
+            xref = self.x_guess[k].copy()
+            sp("x_ref", xref)
+            if k == 0:
+                sp("w_anchor", w["w_anchor"])
+                sp("x_ref", self.x_init)
+            kf = self.kf_knots.get(k)
+            if kf is not None and opt.use_keyframe_base_cost:
+                sp("x_kf", kf.x())
+                sp("w_kfb_z", w["w_kfb_z"])
+                sp("w_kfb_th", w["w_kfb_th"])
+            kfs = kf_sub.get(ph.subtask_index)
+            if (opt.use_keyframe_foot_cost and kfs is not None and kfs.desired_foot_xy is not None
+                    and ph.phase_type == STANCE):
+                sp("w_kff", w["w_kff"])
+                sp("foot_des", np.asarray(kfs.desired_foot_xy, float))
+            for f in FEET:
+                c = self.contact(k, f)
+                if c is not None:
+                    sp(f"{f}_h", self._surface_height(c))
+                    sp(f"{f}_patch", self._patch_frame(c))
+                else:
+                    sp(f"{f}_h", 0.0)
+                    sp(f"{f}_patch", [0, 0, 1, 0])
+                    sp(f"{f}_w_swing", w["w_swing"])
+                    sp(f"{f}_swing_h", self._swing_height(k, f))
+            for h in HANDS:
+                self._hand_params(k, h, col, P)
+            for oid, j in self.midx.items():
+                self._object_params(k, oid, j, col, P)
+            for i, (s, (oid, pi)) in enumerate(self.pairs):
+                self._pair_params(k, i, s, oid, pi, col, P, expo, penalty, homotopy)
+
+        # ---------------- warm start
+        W0 = np.zeros((W.n, K + 1))
+        X = self.x_guess
+        for k in range(K):
+            W0[W["x"], k] = X[k]
+            if k < N:
+                xd = (X[k + 1] - X[k]) / max(t[k + 1] - t[k], 1e-3) if k + 1 < K else np.zeros(35)
+            else:
+                xd = np.zeros(35)
+            W0[W["x"], k] = X[k]
+        for k in range(1, K):
+            W0[W["xd"], k] = (X[k] - X[k - 1]) / max(t[k] - t[k - 1], 1e-3)
+        W0[W["xd"], 0] = 0
+        W0[W["xd"], N] = 0
+        for k in range(K):
+            num = m.numeric(X[k], W0[W["xd"], k])
+            W0[W["com"], k] = num["com"]
+            W0[W["comd"], k] = num["h"][:3] / m.mass
+            W0[W["kk"], k] = num["h"][3:] / m.mass
+            nf = sum(self.contact(k, f) is not None for f in FEET)
+            for f in FEET:
+                if self.contact(k, f) is not None:
+                    W0[W[f"u_{f}"], k] = np.tile([0, 0, 1.0 / (4 * nf)], 4)
+            for oid, j in self.midx.items():
+                W0[W[f"o{j}_pose"], k] = self.obj_nom[oid][k]
+                if k > 0 and self.obj_mode(k, oid) != "fixed" and self.obj_mode(k - 1, oid) != "fixed":
+                    W0[W[f"o{j}_vel"], k] = (self.obj_nom[oid][k] - self.obj_nom[oid][k - 1]) / (t[k] - t[k - 1])
+        W0 = np.clip(W0, lbw, ubw)
+        return lbw, ubw, lbg, ubg, Pm, W0
+
+    # ------------------------------------------------------------------ helpers
+    def _surface(self, c):
+        """(height, centre xy, yaw, half extents xy) of the surface a foot touches."""
+        if c.object_id == FLOOR:
+            return 0.0, np.zeros(2), 0.0, np.array([INF, INF])
+        o = self.prob.object(c.object_id)
+        pose = np.concatenate([np.asarray(o.position, float), o.rpy()])
+        if c.object_id in self.obj_nom:  # moved earlier: use its nominal resting pose at that time
+            pose = self._nominal_pose_at_contact(c)
+        return pose[2] + o.top_z(), pose[:2], pose[5], o.footprint_half()
+
+    def _nominal_pose_at_contact(self, c):
+        for k in range(self.grid.K):
+            if self.contact(k, "left_foot") is c or self.contact(k, "right_foot") is c:
+                return self.obj_nom[c.object_id][k]
+        return self.obj_nom[c.object_id][-1]
+
+    def _surface_height(self, c):
+        return self._surface(c)[0]
+
+    def _patch_frame(self, c):
+        _, xy, yaw, _ = self._surface(c)
+        return [xy[0], xy[1], math.cos(yaw), math.sin(yaw)]
+
+    def _patch_half(self, c):
+        he = self._surface(c)[3]
+        # the sole centre must stay 6 cm inside the surface edges (sole half-width ~3 cm)
+        return np.maximum(he - 0.06, 0.0)
+
+    def _swing_height(self, k, f):
+        K = self.grid.K
+        k0 = k
+        while k0 > 0 and self.contact(k0, f) is None:
+            k0 -= 1
+        k1 = k
+        while k1 < K - 1 and self.contact(k1, f) is None:
+            k1 += 1
+        c0, c1 = self.contact(k0, f), self.contact(k1, f)
+        h0 = self._surface_height(c0) if c0 is not None else 0.0
+        h1 = self._surface_height(c1) if c1 is not None else 0.0
+        s = (self.grid.t[k] - self.grid.t[k0]) / max(self.grid.t[k1] - self.grid.t[k0], 1e-6)
+        top = max(h0, h1) + self.w["swing_clearance"]
+        # rise to 'top' quickly, stay, come down: smooth bump
+        bump = math.sin(math.pi * s)
+        base = (1 - s) * h0 + s * h1
+        return base + (top - base) * min(1.0, 1.6 * bump)
+
+    def _hand_params(self, k, h, col, P):
+        c = self.contact(k, h)
+        n_obj = len(self.moving)
+        sel = np.zeros(n_obj + 1)
+        if c is None:
+            col[P[f"{h}_sel"]] = sel
+            col[P[f"{h}_n"]] = [0, 0, 1]
+            col[P[f"{h}_t1"]] = [1, 0, 0]
+            col[P[f"{h}_t2"]] = [0, 1, 0]
+            return
+        # first knot of this contiguous contact with the same object: grip defined there
+        k0 = k
+        while k0 > 0 and self.contact(k0 - 1, h) is not None and self.contact(k0 - 1, h).object_id == c.object_id:
+            k0 -= 1
+        c0 = self.contact(k0, h)
+        pos = np.asarray(c0.position, float)
+        n = np.asarray(c0.normal, float)
+        n = n / np.linalg.norm(n)
+        if c.object_id in self.midx:
+            j = self.midx[c.object_id]
+            sel[j + 1] = 1
+            pose = self.obj_nom[c.object_id][k0]
+            R = rpy_to_rot(pose[3:])
+            loc = R.T @ (pos - pose[:3])
+            n = R.T @ n
+        else:
+            sel[0] = 1
+            loc = pos
+        a = np.array([1.0, 0, 0]) if abs(n[0]) < 0.9 else np.array([0, 1.0, 0])
+        t1 = np.cross(n, a)
+        t1 /= np.linalg.norm(t1)
+        t2 = np.cross(n, t1)
+        col[P[f"{h}_sel"]] = sel
+        col[P[f"{h}_loc"]] = loc
+        col[P[f"{h}_n"]] = n
+        col[P[f"{h}_t1"]] = t1
+        col[P[f"{h}_t2"]] = t2
+
+    def _lumped(self, k, oid):
+        """Mass and body inertia of object oid plus objects attached to it at knot k."""
+        o = self.prob.object(oid)
+        mass = o.mass
+        I = o.inertia_matrix().copy()
+        for other, jj in self.midx.items():
+            ph = self.prob.phases[self.grid.phase[k]]
+            mo = ph.objects.get(other)
+            if mo is not None and mo.mode == "attached" and mo.attached_to == oid:
+                oo = self.prob.object(other)
+                off = self._attach_offset(k, other, oid)[:3]
+                mass += oo.mass
+                I = I + oo.inertia_matrix() + oo.mass * (np.dot(off, off) * np.eye(3) - np.outer(off, off))
+        return mass, I
+
+    def _attach_offset(self, k, oid, carrier):
+        k0 = k
+        while k0 > 0 and self.obj_mode(k0 - 1, oid) == "attached":
+            k0 -= 1
+        pc = self.obj_nom[carrier][k0]
+        po = self.obj_nom[oid][k0]
+        Rc = rpy_to_rot(pc[3:])
+        return np.concatenate([Rc.T @ (po[:3] - pc[:3]), [po[5] - pc[5]]])
+
+    def _object_params(self, k, oid, j, col, P):
+        o = self.prob.object(oid)
+        mode = self.obj_mode(k, oid)
+        mass, I = self._lumped(k, oid)
+        col[P[f"o{j}_m"]] = mass
+        col[P[f"o{j}_I"]] = I.ravel(order="F")
+        hx, hy = o.footprint_half()
+        bz = o.bottom_z()
+        col[P[f"o{j}_corners"]] = np.array([[hx, hy, bz], [hx, -hy, bz], [-hx, hy, bz], [-hx, -hy, bz]]).ravel()
+        col[P[f"o{j}_axle"]] = np.asarray(o.rear_axle, float)
+        ph = self.prob.phases[self.grid.phase[k]]
+        mo = ph.objects.get(oid)
+        if mode in ("supported", "rolling"):
+            sup = mo.support
+            hs = 0.0 if sup == FLOOR else (np.asarray(self.prob.object(sup).position)[2] + self.prob.object(sup).top_z())
+            col[P[f"o{j}_zrest"]] = hs - bz
+        else:
+            col[P[f"o{j}_zrest"]] = self.obj_nom[oid][k][2]
+        if mode == "attached":
+            sel = np.zeros(len(self.moving))
+            sel[self.midx[mo.attached_to]] = 1
+            col[P[f"o{j}_att_sel"]] = sel
+            col[P[f"o{j}_att_off"]] = self._attach_offset(k, oid, mo.attached_to)
+        col[P[f"o{j}_w_reg"]] = self.w["w_obj_reg"]
+        for g in self.prob.placement_goals:
+            if g.object_id != oid:
+                continue
+            tg = self.prob.duration if g.time is None else g.time
+            kg = int(np.argmin(np.abs(self.grid.t - tg)))
+            if k == kg or k == self.grid.K - 1:
+                col[P[f"o{j}_w_goal"]] = g.weight
+                col[P[f"o{j}_goal"]] = [*g.position, g.yaw]
+
+    def _pair_enabled(self, k, s, oid) -> bool:
+        grp = self.model.spheres[s].group
+        for limb in LIMBS:
+            c = self.contact(k, limb)
+            near = [c]
+            if k > 0:
+                near.append(self.contact(k - 1, limb))
+            if k + 1 < self.grid.K:
+                near.append(self.contact(k + 1, limb))
+            for cc in near:
+                if cc is None or cc.object_id != oid:
+                    continue
+                side = limb.split("_")[0]
+                if limb in HANDS and grp in (f"{side}_hand", f"{side}_forearm"):
+                    return False
+                if limb in FEET and grp == f"{side}_foot":
+                    return False
+        return True
+
+    def _pair_params(self, k, i, s, oid, pi, col, P, expo, penalty, homotopy):
+        o = self.prob.object(oid)
+        pr = o.primitives[pi]
+        sel = np.zeros(len(self.moving) + 1)
+        if oid in self.midx:
+            sel[self.midx[oid] + 1] = 1
+            col[P[f"c{i}_loc"]] = [*pr.position, math.cos(pr.yaw), math.sin(pr.yaw)]
+            col[P[f"c{i}_pose"]] = np.concatenate([np.zeros(3), np.eye(3).ravel()])
+        else:
+            sel[0] = 1
+            c, R, _ = obj_prims_world(o)[pi]
+            col[P[f"c{i}_pose"]] = np.concatenate([c, R.ravel(order="F")])
+            col[P[f"c{i}_loc"]] = [0, 0, 0, 1, 0]
+        col[P[f"c{i}_sel"]] = sel
+        col[P[f"c{i}_half"]] = pr.half_extents()
+        on = self._pair_enabled(k, s, oid)
+        col[P[f"c{i}_w"]] = [self.w["w_pen"] if (penalty and on) else 0.0,
+                             self.w["w_hom"] if (homotopy and on) else 0.0, expo]

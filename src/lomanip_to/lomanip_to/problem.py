@@ -1,0 +1,413 @@
+"""Problem description of the whole-body TO (plain dataclasses, no ROS) and its validation.
+
+Everything the TO needs arrives here: scene objects (primitives, mass, inertia, pose), keyframes
+(35-D G1 configuration + contacts + desired mid-foot xy), the contact schedule (contiguous phases
+with the limbs in contact and what they touch, stance/walking flag, which objects move and how),
+placement goals and the options (ablation switches).  :func:`validate_problem` raises
+:class:`ProblemError` with an error code (values of ``lomanip_msgs/ErrorCode``) BEFORE any solve.
+
+Conventions: world frame z up, metres, seconds, kg; quaternions (x, y, z, w) as in ROS/Pinocchio;
+joint order = MuJoCo / Pinocchio order of g1.xml (29 joints).
+
+Simplifications (named):
+* An object's frame origin is taken as its centre of mass (``com`` must be ~0).
+* Object primitives are boxes and cylinders; for collision a cylinder is treated as its bounding box.
+* Objects not listed as moving in a phase are fixed in the world during that phase (their support
+  forces are not modelled); a robot foot may stand on a fixed object's top face.
+* An object ``attached`` to another (box riding on the trolley) moves rigidly with it and its mass
+  and inertia are lumped into the carrier's rigid body for that phase.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from .model import FEET, HANDS, LIMBS
+
+# lomanip_msgs/ErrorCode values (kept numerically identical; the conversion layer maps them)
+SUCCESS = 1
+INVALID_REQUEST = -1
+UNKNOWN_OBJECT = -2
+TO_NOT_CONVERGED = -6
+TIMEOUT = -7
+INVALID_TRAJECTORY = -11
+
+STANCE = "stance"
+WALKING = "walking"
+FLOOR = "floor"
+
+OBJECT_MODES = ("free", "supported", "rolling", "attached")
+
+#: Reach model for the placement check: a placement must lie within this horizontal distance of a
+#: keyframe base position and below this height above that keyframe's support.
+REACH_XY = 1.0
+REACH_Z = 1.8
+WORKSPACE = ((-20.0, 20.0), (-20.0, 20.0), (-0.01, 3.0))
+
+
+class ProblemError(ValueError):
+    """Invalid TO input; ``code`` is a lomanip_msgs/ErrorCode value, ``where`` names the field."""
+
+    def __init__(self, code: int, message: str, where: str = ""):
+        super().__init__(f"[{code}] {where + ': ' if where else ''}{message}")
+        self.code = code
+        self.message = message
+        self.where = where
+
+
+@dataclass
+class Primitive:
+    """A box (``size`` = full lengths x, y, z) or cylinder (``size`` = height, radius, as
+    shape_msgs/SolidPrimitive) posed in the object frame (position + yaw about the object z)."""
+
+    kind: str
+    size: tuple
+    position: tuple = (0.0, 0.0, 0.0)
+    yaw: float = 0.0
+
+    def half_extents(self) -> np.ndarray:
+        if self.kind == "box":
+            return 0.5 * np.asarray(self.size, float)
+        if self.kind == "cylinder":
+            h, r = self.size
+            return np.array([r, r, 0.5 * h], float)
+        raise ProblemError(INVALID_REQUEST, f"unknown primitive kind {self.kind!r}", "primitive")
+
+
+@dataclass
+class SceneObject:
+    id: str
+    object_class: str
+    movable: bool
+    position: tuple
+    quat_xyzw: tuple = (0.0, 0.0, 0.0, 1.0)
+    mass: float = 0.0
+    com: tuple = (0.0, 0.0, 0.0)
+    inertia: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    primitives: list = field(default_factory=list)
+    #: for ``rolling`` objects: the rear axle position in the object frame (no lateral slip there)
+    rear_axle: tuple = (0.0, 0.0, 0.0)
+
+    def yaw(self) -> float:
+        x, y, z, w = self.quat_xyzw
+        return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+    def rpy(self) -> np.ndarray:
+        from .model import quat_xyzw_to_rot, rot_to_rpy
+
+        return rot_to_rpy(quat_xyzw_to_rot(self.quat_xyzw))
+
+    def bottom_z(self) -> float:
+        """Lowest point of the primitives relative to the object origin (object kept level)."""
+        return min(p.position[2] - p.half_extents()[2] for p in self.primitives)
+
+    def top_z(self) -> float:
+        return max(p.position[2] + p.half_extents()[2] for p in self.primitives)
+
+    def footprint_half(self) -> np.ndarray:
+        """Half extents in x, y of the union of primitives (object frame, about the origin)."""
+        hx = max(abs(p.position[0]) + p.half_extents()[0] for p in self.primitives)
+        hy = max(abs(p.position[1]) + p.half_extents()[1] for p in self.primitives)
+        return np.array([hx, hy])
+
+    def inertia_matrix(self) -> np.ndarray:
+        I = np.asarray(self.inertia, float)
+        if I.shape == (3,):
+            I = np.diag(I)
+        if not np.any(I) and self.primitives:  # solid box estimate from the first primitive
+            a, b, c = 2 * self.primitives[0].half_extents()
+            I = self.mass / 12.0 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
+        return I
+
+
+@dataclass
+class ContactSpec:
+    """A contact of one limb: ``position`` (world) on ``object_id`` with outward ``normal``."""
+
+    limb: str
+    object_id: str
+    position: tuple
+    normal: tuple = (0.0, 0.0, 1.0)
+
+
+@dataclass
+class Keyframe:
+    subtask_index: int
+    base_position: tuple
+    base_quat_xyzw: tuple
+    joints: tuple  # 29 values, model order
+    contacts: list = field(default_factory=list)
+    desired_foot_xy: tuple | None = None
+    reference_object_id: str = ""
+    prompt: str = ""
+    #: time of the keyframe in the trajectory; None = end of its subtask
+    time: float | None = None
+
+    def x(self) -> np.ndarray:
+        from .model import quat_xyzw_to_rot, rot_to_rpy
+
+        x = np.zeros(35)
+        x[:3] = self.base_position
+        x[3:6] = rot_to_rpy(quat_xyzw_to_rot(self.base_quat_xyzw))
+        x[6:] = self.joints
+        return x
+
+
+@dataclass
+class ObjectMotion:
+    """How a movable object moves in a phase (objects not listed are fixed).
+
+    * ``free``: single rigid body under gravity and the robot's contact wrenches (carried).
+    * ``supported``: rigid body resting on ``support`` (``floor`` or a fixed object's top) with
+      four corner forces (patch contact), may slide.
+    * ``rolling``: like supported, plus nonholonomic wheels: no longitudinal friction and zero
+      lateral velocity at the rear axle (trolley).
+    * ``attached``: rigidly attached to ``attached_to`` (another moving object).
+    """
+
+    mode: str = "free"
+    support: str = FLOOR
+    attached_to: str = ""
+
+
+@dataclass
+class ContactPhase:
+    start: float
+    end: float
+    phase_type: str = STANCE  # "stance" | "walking"
+    subtask_index: int = 0
+    #: limb -> ContactSpec (object_id "floor" or a SceneObject.id; position optional for feet)
+    contacts: dict = field(default_factory=dict)
+    objects: dict = field(default_factory=dict)  # object id -> ObjectMotion
+
+
+@dataclass
+class PlacementGoal:
+    object_id: str
+    position: tuple
+    yaw: float = 0.0
+    #: time at which the goal should hold; None = end of the trajectory
+    time: float | None = None
+    weight: float = 1e3
+
+
+@dataclass
+class Options:
+    use_keyframe_base_cost: bool = True
+    use_keyframe_foot_cost: bool = True
+    use_keyframe_warm_start: bool = True
+    collision_hard_constraint: bool = True
+    collision_penalty: bool = True
+    collision_homotopy: bool = True
+    max_iterations: int = 500
+    output_rate: float = 100.0
+    #: knot spacing targets (s) for stance and walking phases (phase-wise sizing)
+    dt_stance: float = 0.2
+    dt_walking: float = 0.1
+    tol: float = 1e-4
+    constr_tol: float = 1e-4
+    time_limit: float = 600.0
+    print_level: int = 0
+    #: collision sphere groups checked against objects ("minimal collision set")
+    collision_groups: tuple = ("left_foot", "right_foot", "left_shin", "right_shin", "left_thigh",
+                               "right_thigh", "pelvis", "torso", "left_hand", "right_hand",
+                               "left_forearm", "right_forearm")
+    self_collision: bool = True
+    weights: dict = field(default_factory=dict)
+
+    def replaced(self, **kw) -> "Options":
+        return replace(self, **kw)
+
+
+@dataclass
+class Problem:
+    objects: list
+    keyframes: list
+    phases: list
+    initial_configuration: tuple  # 35-D x (p, rpy, 29 joints) or None
+    placement_goals: list = field(default_factory=list)
+    options: Options = field(default_factory=Options)
+    name: str = ""
+
+    def object(self, oid: str) -> SceneObject:
+        for o in self.objects:
+            if o.id == oid:
+                return o
+        raise ProblemError(UNKNOWN_OBJECT, f"unknown object id {oid!r}", "objects")
+
+    @property
+    def duration(self) -> float:
+        return self.phases[-1].end if self.phases else 0.0
+
+    def moving_object_ids(self) -> list:
+        ids: list = []
+        for ph in self.phases:
+            for oid in ph.objects:
+                if oid not in ids:
+                    ids.append(oid)
+        return ids
+
+    def keyframe_time(self, kf: Keyframe) -> float:
+        if kf.time is not None:
+            return float(kf.time)
+        ends = [ph.end for ph in self.phases if ph.subtask_index == kf.subtask_index]
+        return max(ends) if ends else self.duration
+
+
+# ----------------------------------------------------------------------------------------------
+def _finite(arr, n: int | None, where: str) -> np.ndarray:
+    a = np.asarray(arr, float).reshape(-1)
+    if n is not None and a.size != n:
+        raise ProblemError(INVALID_REQUEST, f"expected {n} values, got {a.size}", where)
+    if not np.all(np.isfinite(a)):
+        raise ProblemError(INVALID_REQUEST, f"non-finite value (NaN/inf) in {a.tolist()}", where)
+    return a
+
+
+def validate_problem(prob: Problem, model=None) -> None:
+    """Check a problem before solving; raise :class:`ProblemError` on the first defect."""
+    ids = set()
+    for i, o in enumerate(prob.objects):
+        w = f"objects[{i}] ({o.id})"
+        if not o.id or o.id == FLOOR:
+            raise ProblemError(INVALID_REQUEST, "object id empty or reserved ('floor')", w)
+        if o.id in ids:
+            raise ProblemError(INVALID_REQUEST, f"duplicate object id {o.id!r}", w)
+        ids.add(o.id)
+        _finite(o.position, 3, w + ".position")
+        q = _finite(o.quat_xyzw, 4, w + ".quat_xyzw")
+        if abs(np.linalg.norm(q) - 1.0) > 1e-3:
+            raise ProblemError(INVALID_REQUEST, "quaternion is not unit norm", w)
+        if o.movable and not (o.mass > 0):
+            raise ProblemError(INVALID_REQUEST, "movable object needs a positive mass", w)
+        if np.linalg.norm(np.asarray(o.com, float)) > 1e-6:
+            raise ProblemError(INVALID_REQUEST, "object frame must be at its centre of mass", w)
+        if not o.primitives:
+            raise ProblemError(INVALID_REQUEST, "object has no primitives", w)
+        for p in o.primitives:
+            he = p.half_extents()
+            if not np.all(np.isfinite(he)) or np.any(he <= 0):
+                raise ProblemError(INVALID_REQUEST, f"bad primitive size {p.size}", w)
+
+    def check_obj(oid, where, allow_floor=True):
+        if oid == FLOOR and allow_floor:
+            return
+        if oid not in ids:
+            raise ProblemError(UNKNOWN_OBJECT, f"unknown object id {oid!r}", where)
+
+    if prob.initial_configuration is None:
+        raise ProblemError(INVALID_REQUEST, "initial configuration missing", "initial_configuration")
+    x0 = _finite(prob.initial_configuration, 35, "initial_configuration")
+    if not prob.phases:
+        raise ProblemError(INVALID_REQUEST, "contact schedule has no phases", "phases")
+    if abs(prob.phases[0].start) > 1e-9:
+        raise ProblemError(INVALID_REQUEST, "first phase must start at t=0", "phases[0]")
+    for i, ph in enumerate(prob.phases):
+        w = f"phases[{i}]"
+        _finite([ph.start, ph.end], 2, w + ".start/end")
+        if ph.end - ph.start < 0.05:
+            raise ProblemError(INVALID_REQUEST, f"phase too short or reversed ({ph.start}..{ph.end})", w)
+        if i > 0:
+            prev = prob.phases[i - 1].end
+            if ph.start < prev - 1e-9:
+                raise ProblemError(INVALID_REQUEST, f"phase overlaps the previous one ({ph.start} < {prev})", w)
+            if ph.start > prev + 1e-9:
+                raise ProblemError(INVALID_REQUEST, f"gap in the schedule ({prev} .. {ph.start})", w)
+        if ph.phase_type not in (STANCE, WALKING):
+            raise ProblemError(INVALID_REQUEST, f"phase type {ph.phase_type!r}", w)
+        if not any(f in ph.contacts for f in FEET):
+            raise ProblemError(INVALID_REQUEST, "no foot in contact (flight phases are not supported)", w)
+        for limb, c in ph.contacts.items():
+            if limb not in LIMBS:
+                raise ProblemError(INVALID_REQUEST, f"unknown limb {limb!r}", w)
+            check_obj(c.object_id, f"{w}.contacts[{limb}]")
+            if c.position is not None:
+                _finite(c.position, 3, f"{w}.contacts[{limb}].position")
+            n = _finite(c.normal, 3, f"{w}.contacts[{limb}].normal")
+            if np.linalg.norm(n) < 1e-6:
+                raise ProblemError(INVALID_REQUEST, "zero contact normal", f"{w}.contacts[{limb}]")
+            if limb in FEET:
+                if c.object_id != FLOOR and c.object_id in ph.objects:
+                    raise ProblemError(INVALID_REQUEST, "feet may only stand on fixed surfaces",
+                                       f"{w}.contacts[{limb}]")
+                if abs(n[2] / np.linalg.norm(n)) < 0.99:
+                    raise ProblemError(INVALID_REQUEST, "foot contact surface must be perpendicular "
+                                       "to gravity", f"{w}.contacts[{limb}]")
+            if limb in HANDS and c.position is None:
+                raise ProblemError(INVALID_REQUEST, "hand contact needs a position",
+                                   f"{w}.contacts[{limb}]")
+        for oid, mo in ph.objects.items():
+            check_obj(oid, f"{w}.objects", allow_floor=False)
+            if not prob.object(oid).movable:
+                raise ProblemError(INVALID_REQUEST, f"object {oid!r} is not movable", f"{w}.objects")
+            if mo.mode not in OBJECT_MODES:
+                raise ProblemError(INVALID_REQUEST, f"unknown object mode {mo.mode!r}", f"{w}.objects")
+            if mo.mode in ("supported", "rolling"):
+                check_obj(mo.support, f"{w}.objects[{oid}].support")
+            if mo.mode == "attached":
+                check_obj(mo.attached_to, f"{w}.objects[{oid}].attached_to", allow_floor=False)
+                if mo.attached_to not in ph.objects:
+                    raise ProblemError(INVALID_REQUEST, "attached to an object that does not move",
+                                       f"{w}.objects[{oid}]")
+    nj = 29
+    subtasks = {ph.subtask_index for ph in prob.phases}
+    for i, kf in enumerate(prob.keyframes):
+        w = f"keyframes[{i}]"
+        j = np.asarray(kf.joints, float).reshape(-1)
+        if j.size != nj:
+            raise ProblemError(INVALID_REQUEST, f"expected {nj} joint values, got {j.size}", w + ".joints")
+        _finite(j, nj, w + ".joints")
+        _finite(kf.base_position, 3, w + ".base_position")
+        q = _finite(kf.base_quat_xyzw, 4, w + ".base_quat_xyzw")
+        if abs(np.linalg.norm(q) - 1.0) > 1e-3:
+            raise ProblemError(INVALID_REQUEST, "quaternion is not unit norm", w)
+        if kf.subtask_index not in subtasks:
+            raise ProblemError(INVALID_REQUEST, f"subtask {kf.subtask_index} not in the schedule", w)
+        for c in kf.contacts:
+            check_obj(c.object_id, f"{w}.contacts[{c.limb}]")
+            if c.limb not in LIMBS:
+                raise ProblemError(INVALID_REQUEST, f"unknown limb {c.limb!r}", w)
+            _finite(c.position, 3, f"{w}.contacts[{c.limb}].position")
+        if kf.reference_object_id:
+            check_obj(kf.reference_object_id, w + ".reference_object_id")
+        if kf.desired_foot_xy is not None:
+            _finite(kf.desired_foot_xy, 2, w + ".desired_foot_xy")
+        t = prob.keyframe_time(kf)
+        if not (-1e-9 <= t <= prob.duration + 1e-9):
+            raise ProblemError(INVALID_REQUEST, f"keyframe time {t} outside the schedule", w)
+        if model is not None:
+            lo, hi = model.q_lower - 1e-3, model.q_upper + 1e-3
+            bad = np.where((j < lo) | (j > hi))[0]
+            if bad.size:
+                names = [model.joint_names[b] for b in bad[:3]]
+                raise ProblemError(INVALID_REQUEST, f"joint values outside limits: {names}", w + ".joints")
+    for i, g in enumerate(prob.placement_goals):
+        w = f"placement_goals[{i}] ({g.object_id})"
+        check_obj(g.object_id, w, allow_floor=False)
+        if not prob.object(g.object_id).movable:
+            raise ProblemError(INVALID_REQUEST, "placement goal for a fixed object", w)
+        p = _finite(g.position, 3, w + ".position")
+        _finite([g.yaw], 1, w + ".yaw")
+        for k, (lo, hi) in enumerate(WORKSPACE):
+            if not lo <= p[k] <= hi:
+                raise ProblemError(INVALID_REQUEST, f"placement {p.tolist()} outside the workspace", w)
+        # reachable: near some keyframe base or planned foot position (carrying/pushing reach)
+        anchors = [np.asarray(kf.base_position, float) for kf in prob.keyframes]
+        anchors.append(x0[:3])
+        for ph in prob.phases:
+            for limb, c in ph.contacts.items():
+                if limb in FEET and c.position is not None:
+                    anchors.append(np.asarray(c.position, float) + np.array([0, 0, 0.75]))
+        dxy = min(np.linalg.norm(p[:2] - a[:2]) for a in anchors)
+        dz = min(p[2] - (a[2] - 0.8) for a in anchors)
+        if dxy > REACH_XY or dz > REACH_Z:
+            raise ProblemError(INVALID_REQUEST, f"placement unreachable: {dxy:.2f} m from the nearest "
+                               f"planned robot position (reach {REACH_XY} m)", w)
+    if model is not None:
+        bad = np.where((x0[6:] < model.q_lower - 1e-3) | (x0[6:] > model.q_upper + 1e-3))[0]
+        if bad.size:
+            raise ProblemError(INVALID_REQUEST, "initial joints outside limits", "initial_configuration")

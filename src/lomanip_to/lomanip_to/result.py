@@ -1,0 +1,175 @@
+"""The TO result: knot values, a dense time grid for a controller, solver statistics.
+
+Everything a ``lomanip_msgs/WholeBodyTrajectory`` needs is here (no ROS types): joint names, dense
+time grid, base poses (quaternion x,y,z,w) and twists, 29 joint positions/velocities, object poses,
+contact wrenches per point per limb (acting ON the robot, world frame, about the contact point),
+CoM and centroidal momentum, and :class:`SolverStats` (converged, iterations, times, worst
+dynamics/contact violation with time and constraint name, max penetration, peak memory).
+
+A failed solve is reported as failed: ``stats.converged`` is False and ``stats.success`` False;
+the numbers are still returned for diagnosis but must not be executed.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from .model import rot_to_quat_xyzw, rpy_rate_matrix, rpy_to_rot
+
+
+@dataclass
+class Violation:
+    value: float = 0.0
+    time: float = 0.0
+    constraint: str = ""
+
+    def text(self) -> str:
+        return f"{self.value:.2e} at t={self.time:.2f} s, {self.constraint}" if self.constraint else f"{self.value:.2e}"
+
+
+@dataclass
+class SolverStats:
+    solver: str = "ipopt (window-assembled exact derivatives)"
+    converged: bool = False
+    status: str = ""
+    iterations: int = 0
+    build_time: float = 0.0
+    solve_time: float = 0.0
+    cost: float = float("nan")
+    max_dynamics_violation: Violation = field(default_factory=Violation)
+    max_contact_violation: Violation = field(default_factory=Violation)
+    max_constraint_violation: Violation = field(default_factory=Violation)
+    max_penetration: float = 0.0
+    max_penetration_time: float = 0.0
+    peak_memory_mb: float = 0.0
+    n_knots: int = 0
+    n_variables: int = 0
+    n_constraints: int = 0
+    stages: list = field(default_factory=list)
+    checks: dict = field(default_factory=dict)
+    success: bool = False  # converged AND the physical checks pass
+
+    def status_message(self) -> str:
+        s = "converged" if self.converged else f"NOT converged ({self.status})"
+        return (f"{s}; max constraint violation {self.max_constraint_violation.text()}; "
+                f"max penetration {self.max_penetration * 1e3:.1f} mm at t={self.max_penetration_time:.2f} s")
+
+
+@dataclass
+class TOResult:
+    joint_names: list
+    limbs: list
+    object_ids: list
+    # knots
+    t_knots: np.ndarray
+    x_knots: np.ndarray  # K x 35  (base p, rpy, joints)
+    xd_knots: np.ndarray  # K x 35
+    com_knots: np.ndarray  # K x 3
+    h_knots: np.ndarray  # K x 6 linear (kg m/s), angular about CoM (kg m^2/s)
+    forces_knots: dict  # limb -> K x 3 (N, world, on the robot)
+    torques_knots: dict  # limb -> K x 3 (N m about the contact point)
+    points_knots: dict  # limb -> K x 3 contact point (world)
+    corner_forces_knots: dict  # foot -> K x 4 x 3 (N)
+    contact_objects_knots: dict  # limb -> list of object id ("" when not in contact)
+    object_pose_knots: dict  # object id -> K x 6 (p, rpy)
+    object_vel_knots: dict  # object id -> K x 6 (v, rpy rates)
+    penetration_knots: np.ndarray  # K (sum of negative signed distances, positive metres)
+    stats: SolverStats
+    normals_knots: dict = None  # hand -> K x 3 outward surface normal of the touched object
+    # dense grid (filled by densify)
+    t: np.ndarray = None
+    base_position: np.ndarray = None
+    base_quat_xyzw: np.ndarray = None
+    base_linear_velocity: np.ndarray = None  # world
+    base_angular_velocity: np.ndarray = None  # world
+    joint_positions: np.ndarray = None
+    joint_velocities: np.ndarray = None
+    com: np.ndarray = None
+    linear_momentum: np.ndarray = None
+    angular_momentum: np.ndarray = None
+    forces: dict = None
+    torques: dict = None
+    points: dict = None
+    contact_objects: dict = None
+    object_positions: dict = None
+    object_quat_xyzw: dict = None
+    object_linear_velocity: dict = None
+    object_angular_velocity: dict = None
+    penetration: np.ndarray = None
+
+    @property
+    def success(self) -> bool:
+        return bool(self.stats.success)
+
+    # ------------------------------------------------------------------------------------------
+    def densify(self, rate: float = 100.0) -> "TOResult":
+        """Reconstruct a dense grid: C1 cubic Hermite through the knots for positions (slopes =
+        mean of adjacent secant slopes), its derivative for velocities, zero-order hold on the knot
+        interval for contact wrenches (the transcription applies forces of knot k on [t_k, t_k+1))."""
+        tk = self.t_knots
+        n = int(np.floor((tk[-1] - tk[0]) * rate + 1e-9)) + 1
+        t = tk[0] + np.arange(n) / rate
+        if t[-1] < tk[-1] - 1e-9:
+            t = np.append(t, tk[-1])
+        self.t = t
+        X, Xd = _hermite(tk, self.x_knots, t)
+        self.base_position = X[:, :3]
+        self.base_quat_xyzw = np.array([rot_to_quat_xyzw(rpy_to_rot(r)) for r in X[:, 3:6]])
+        self.base_linear_velocity = Xd[:, :3]
+        self.base_angular_velocity = np.array([rpy_rate_matrix(r) @ rd for r, rd in zip(X[:, 3:6], Xd[:, 3:6])])
+        self.joint_positions = X[:, 6:]
+        self.joint_velocities = Xd[:, 6:]
+        self.com, _ = _hermite(tk, self.com_knots, t)
+        H, _ = _hermite(tk, self.h_knots, t)
+        self.linear_momentum, self.angular_momentum = H[:, :3], H[:, 3:]
+        idx = np.clip(np.searchsorted(tk, t, side="right") - 1, 0, len(tk) - 1)
+        self.forces = {l: v[idx] for l, v in self.forces_knots.items()}
+        self.torques = {l: v[idx] for l, v in self.torques_knots.items()}
+        self.points = {l: v[idx] for l, v in self.points_knots.items()}
+        self.contact_objects = {l: [v[i] for i in idx] for l, v in self.contact_objects_knots.items()}
+        self.object_positions, self.object_quat_xyzw = {}, {}
+        self.object_linear_velocity, self.object_angular_velocity = {}, {}
+        for oid, pose in self.object_pose_knots.items():
+            P, Pd = _hermite(tk, pose, t)
+            self.object_positions[oid] = P[:, :3]
+            self.object_quat_xyzw[oid] = np.array([rot_to_quat_xyzw(rpy_to_rot(r)) for r in P[:, 3:]])
+            self.object_linear_velocity[oid] = Pd[:, :3]
+            self.object_angular_velocity[oid] = np.array([rpy_rate_matrix(r) @ rd for r, rd in zip(P[:, 3:], Pd[:, 3:])])
+        self.penetration = np.interp(t, tk, self.penetration_knots)
+        return self
+
+    def summary(self) -> dict:
+        s = asdict(self.stats)
+        s["duration"] = float(self.t_knots[-1])
+        return s
+
+    def to_json(self) -> str:
+        d = {"stats": self.summary(), "t_knots": self.t_knots.tolist(),
+             "x_knots": self.x_knots.tolist(), "penetration_knots": self.penetration_knots.tolist(),
+             "joint_names": self.joint_names,
+             "object_pose_knots": {k: v.tolist() for k, v in self.object_pose_knots.items()},
+             "forces_knots": {k: v.tolist() for k, v in self.forces_knots.items()}}
+        return json.dumps(d)
+
+
+def _hermite(tk: np.ndarray, Y: np.ndarray, t: np.ndarray):
+    """C1 cubic Hermite interpolation (values and derivatives) of rows Y at knots tk."""
+    Y = np.asarray(Y, float)
+    K = len(tk)
+    if K == 1:
+        return np.repeat(Y, len(t), 0), np.zeros((len(t), Y.shape[1]))
+    sec = np.diff(Y, axis=0) / np.diff(tk)[:, None]
+    m = np.zeros_like(Y)
+    m[0], m[-1] = sec[0], sec[-1]
+    m[1:-1] = 0.5 * (sec[:-1] + sec[1:])
+    i = np.clip(np.searchsorted(tk, t, side="right") - 1, 0, K - 2)
+    h = (tk[i + 1] - tk[i])[:, None]
+    s = ((t - tk[i])[:, None]) / h
+    h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+    val = h00 * Y[i] + h10 * h * m[i] + h01 * Y[i + 1] + h11 * h * m[i + 1]
+    d00, d10, d01, d11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, -6 * s**2 + 6 * s, 3 * s**2 - 2 * s
+    der = (d00 * Y[i] + d01 * Y[i + 1]) / h + d10 * m[i] + d11 * m[i + 1]
+    return val, der

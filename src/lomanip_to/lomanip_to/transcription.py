@@ -1,0 +1,373 @@
+"""Direct transcription of the whole-body TO as ONE symbolic knot window, mapped over the horizon.
+
+Formulation (Dai, Valenzuela, Tedrake 2014: centroidal dynamics + full kinematics)
+---------------------------------------------------------------------------------
+Knot variables ``w_k`` (identical layout at every knot):
+  x (35: base p, base rpy, 29 joints), xd = dx/dt (35), CoM r (3), CoM velocity c (3; linear
+  momentum = m c), angular momentum about the CoM divided by the robot mass kk (3), four corner
+  forces per foot sole (24) and one force per hand (6), all forces in units of the robot weight
+  m g, and per moving object: pose (p, rpy), rates (v, rpy rates), four support corner forces
+  (units of m g) and one slack per object-collision pair (homotopy constraint).
+
+Window ``k`` couples (w_k, w_{k+1}) with a parameter column p_k and returns constraint rows and a
+cost.  Dynamics rows (k -> k+1, explicit in forces, symplectic in positions):
+  x_{k+1} = x_k + dt xd_{k+1};  r_{k+1} = r_k + dt c_{k+1}
+  c_{k+1} - c_k = dt g (sum u_k - e_z)                         (Newton, linear momentum)
+  kk_{k+1} - kk_k = dt g sum (p_i - r_k) x u_i,k                (Euler, angular momentum)
+Knot rows: r_k = CoM(x_k); [m c_k; m kk_k] = A(x_k) xd_k (centroidal momentum matrix).
+Contacts: sole on the surface plane and level (patch orientation), centre inside the surface
+rectangle, no slip between knots (xy and yaw), corner forces in a linearised (inner pyramid)
+friction cone; hands: point on the object (relative to the object's pose when it moves) and force in
+the linearised cone of the object's surface normal; the object receives the opposite force (Newton's
+third law).  Objects: single rigid bodies (linear + angular momentum), supported/rolling patch
+contacts, nonholonomic rear axle, rigid attachment.
+Collisions: robot spheres vs object boxes: hard constraint on the exact signed distance, quadratic
+penalty on penetration, and a homotopy constraint + penalty (with slack) on a super-ellipsoid
+surrogate whose exponent is raised between solves (2 = ellipsoid -> box); self-collision sphere
+pairs (hard + penalty).
+
+Rows that do not apply at a knot get infinite bounds; forces that do not apply get zero bounds, so
+one window Function serves every knot and its derivatives are built once (see ``solver.py``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from .layout import Layout, sx_split
+from .model import FEET, GRAVITY, HANDS, SOLE_CORNERS, G1Model, rpy_rate_matrix, rpy_to_rot, rot_z
+
+G = 9.81
+
+
+@dataclass(frozen=True)
+class Structure:
+    """What fixes the symbolic window: number of moving objects and collision pair structure."""
+
+    n_obj: int
+    obj_pairs: tuple  # sphere index per object-collision pair
+    self_pairs: tuple  # (sphere i, sphere j)
+
+    def key(self) -> str:
+        return hashlib.sha1(repr(self).encode()).hexdigest()[:12]
+
+
+def var_layout(st: Structure) -> Layout:
+    L = Layout("w")
+    L.add("x", 35)
+    L.add("xd", 35)
+    L.add("com", 3)
+    L.add("comd", 3)
+    L.add("kk", 3)
+    for f in FEET:
+        L.add(f"u_{f}", 12)
+    for h in HANDS:
+        L.add(f"u_{h}", 3)
+    for j in range(st.n_obj):
+        L.add(f"o{j}_pose", 6)
+        L.add(f"o{j}_vel", 6)
+        L.add(f"o{j}_us", 12)
+    L.add("slack", len(st.obj_pairs))
+    return L
+
+
+def par_layout(st: Structure) -> Layout:
+    P = Layout("p")
+    for k in ("dt", "w_stage", "b_st", "w_post", "w_xd", "w_acc", "w_force", "w_st_com", "w_st_vel",
+              "w_kff", "w_wk_base", "w_upright", "w_anchor", "w_kfb_z", "w_kfb_th", "w_slack",
+              "w_self", "mu_foot", "mu_hand", "mu_obj", "self_margin"):
+        P.add(k, 1)
+    P.add("x_ref", 35)
+    P.add("x_kf", 35)
+    P.add("foot_des", 2)
+    for f in FEET:
+        P.add(f"{f}_h", 1)  # surface height (contact) / ground height (swing)
+        P.add(f"{f}_patch", 4)  # centre xy, cos, sin of the surface rectangle yaw
+        P.add(f"{f}_w_swing", 1)
+        P.add(f"{f}_swing_h", 1)
+    for h in HANDS:
+        P.add(f"{h}_sel", st.n_obj + 1)
+        P.add(f"{h}_loc", 3)
+        P.add(f"{h}_n", 3)
+        P.add(f"{h}_t1", 3)
+        P.add(f"{h}_t2", 3)
+        P.add(f"{h}_w_track", 1)
+    for j in range(st.n_obj):
+        P.add(f"o{j}_m", 1)
+        P.add(f"o{j}_I", 9)
+        P.add(f"o{j}_corners", 12)
+        P.add(f"o{j}_axle", 3)
+        P.add(f"o{j}_zrest", 1)
+        P.add(f"o{j}_att_sel", st.n_obj)
+        P.add(f"o{j}_att_off", 4)
+        P.add(f"o{j}_w_goal", 1)
+        P.add(f"o{j}_goal", 4)
+        P.add(f"o{j}_w_reg", 1)
+    for i in range(len(st.obj_pairs)):
+        P.add(f"c{i}_sel", st.n_obj + 1)
+        P.add(f"c{i}_pose", 12)  # static world primitive: centre (3) + R (9, column-major)
+        P.add(f"c{i}_loc", 5)  # primitive in the moving object's frame: centre (3), cos, sin
+        P.add(f"c{i}_half", 3)
+        P.add(f"c{i}_w", 3)  # penalty weight, homotopy weight, surrogate exponent
+    return P
+
+
+def _skew_cross(a, b):
+    return ca.cross(a, b)
+
+
+def _soft_norm(v, eps=1e-4):
+    return ca.sqrt(ca.sumsqr(v) + eps * eps) - eps
+
+
+def box_sphere_distance(c_local, half, radius):
+    """Signed distance sphere (centre in the box frame) to an axis-aligned box; smooth-ish."""
+    q = ca.fabs(c_local) - half
+    outside = _soft_norm(ca.fmax(q, 0))
+    inside = ca.fmin(ca.fmax(ca.fmax(q[0], q[1]), q[2]), 0)
+    return outside + inside - radius
+
+
+def superellipsoid(c_local, half, radius, expo):
+    """Surrogate geometry F(c) = sum |c_i/(a_i+r)|^p ; F >= 1 outside.  p=2 ellipsoid, p->inf box."""
+    a = half + radius
+    s = 0
+    for i in range(3):
+        s = s + ca.power((c_local[i] / a[i]) ** 2 + 1e-12, expo / 2)
+    return s
+
+
+class Window:
+    """The symbolic knot window and its layouts (built once per :class:`Structure`)."""
+
+    def __init__(self, model: G1Model, st: Structure):
+        self.model = model
+        self.st = st
+        self.W = var_layout(st)
+        self.P = par_layout(st)
+        a = ca.SX.sym("a", self.W.n)
+        b = ca.SX.sym("b", self.W.n)
+        p = ca.SX.sym("p", self.P.n)
+        self.a, self.b, self.p = a, b, p
+        g_blocks, f = self._build(a, b, p)
+        self.G = Layout("g")
+        exprs = []
+        for name, e in g_blocks:
+            self.G.add(name, e.numel())
+            exprs.append(e)
+        self.g = ca.vertcat(*exprs)
+        self.f = f
+
+    # ------------------------------------------------------------------------------------------
+    def _build(self, a, b, p):
+        m = self.model
+        st = self.st
+        M = st.n_obj
+        wa = sx_split(self.W, a)
+        wb = sx_split(self.W, b)
+        pp = sx_split(self.P, p)
+        dt = pp["dt"]
+        mass = m.mass
+        rows: list = []
+        cost = 0
+
+        def add(name, expr):
+            rows.append((name, ca.vec(expr)))
+
+        # ---- robot kinematics at knot k (a) and k+1 (b, only cheap parts used)
+        tree = m.symbolic_tree(wa["x"], wa["xd"])
+        com_x, h_x = m.com_and_momentum(tree)
+        limbs = m.limb_frames(tree)
+        spheres = m.sphere_centers(tree)
+        tree_b = m.symbolic_tree(wb["x"])
+        limbs_b = m.limb_frames(tree_b)
+
+        # ---- object poses (symbolic) at a and b
+        def obj_state(w, j):
+            pose = w[f"o{j}_pose"]
+            return pose[0:3], pose[3:6], rpy_to_rot(pose[3:6])
+
+        objs_a = [obj_state(wa, j) for j in range(M)]
+
+        # ---- forces (robot scaled by m g)
+        feet_pts = {}
+        forces = []  # (point, u) acting on the robot
+        for f in FEET:
+            u = ca.reshape(wa[f"u_{f}"], 3, 4)
+            jid = m.limb_joint[f]
+            pts = [tree["p"][jid] + tree["R"][jid] @ SOLE_CORNERS[i] for i in range(4)]
+            feet_pts[f] = pts
+            for i in range(4):
+                forces.append((pts[i], u[:, i]))
+        for h in HANDS:
+            forces.append((limbs[h][0], wa[f"u_{h}"]))
+        sum_u = sum(u for _, u in forces)
+        torque = sum(ca.cross(pt - wa["com"], u) for pt, u in forces)
+
+        # ---- robot dynamics (window rows)
+        add("kinematic integration", wb["x"] - wa["x"] - dt * wb["xd"])
+        add("CoM integration", wb["com"] - wa["com"] - dt * wb["comd"])
+        add("linear momentum dynamics", wb["comd"] - wa["comd"] - dt * G * (sum_u - ca.DM([0, 0, 1])))
+        add("angular momentum dynamics", wb["kk"] - wa["kk"] - dt * G * torque)
+        # ---- centroidal consistency (knot rows)
+        add("CoM consistency", wa["com"] - com_x)
+        add("centroidal momentum consistency (CMM)",
+            ca.vertcat(wa["comd"] - h_x[0:3] / mass, wa["kk"] - h_x[3:6] / mass))
+
+        # ---- feet
+        mu_f = pp["mu_foot"]
+        for f in FEET:
+            pt, R = limbs[f]
+            pt_b, R_b = limbs_b[f]
+            patch = pp[f"{f}_patch"]
+            add(f"{f} on surface", pt[2] - pp[f"{f}_h"])
+            add(f"{f} orientation aligned with surface", ca.vertcat(R[0, 2], R[1, 2]))
+            dxy = pt[0:2] - patch[0:2]
+            add(f"{f} inside contact patch",
+                ca.vertcat(patch[2] * dxy[0] + patch[3] * dxy[1], -patch[3] * dxy[0] + patch[2] * dxy[1]))
+            heading_a = R[0:2, 0]
+            heading_b = R_b[0:2, 0]
+            add(f"{f} no slip", ca.vertcat(pt_b[0:2] - pt[0:2],
+                                           heading_a[0] * heading_b[1] - heading_a[1] * heading_b[0]))
+            u = ca.reshape(wa[f"u_{f}"], 3, 4)
+            cones = []
+            for i in range(4):
+                cones += [mu_f * u[2, i] - u[0, i], mu_f * u[2, i] + u[0, i],
+                          mu_f * u[2, i] - u[1, i], mu_f * u[2, i] + u[1, i]]
+            add(f"{f} friction cone", ca.vertcat(*cones))
+            # swing foot height tracking (walking cost)
+            cost += pp["w_stage"] * (1 - pp["b_st"]) * pp[f"{f}_w_swing"] * (pt[2] - pp[f"{f}_swing_h"]) ** 2
+
+        # ---- hands
+        mu_h = pp["mu_hand"]
+        obj_forces = [[] for _ in range(M)]  # (point, force in robot-weight units) on object j
+        for h in HANDS:
+            sel = pp[f"{h}_sel"]
+            loc = pp[f"{h}_loc"]
+            Rsel = sel[0] * ca.SX.eye(3)
+            target = sel[0] * loc
+            for j in range(M):
+                pj, _, Rj = objs_a[j]
+                Rsel = Rsel + sel[j + 1] * Rj
+                target = target + sel[j + 1] * (pj + Rj @ loc)
+            pt = limbs[h][0]
+            add(f"{h} contact position", pt - target)
+            n = Rsel @ pp[f"{h}_n"]
+            t1 = Rsel @ pp[f"{h}_t1"]
+            t2 = Rsel @ pp[f"{h}_t2"]
+            u = wa[f"u_{h}"]
+            un = ca.dot(u, n)
+            add(f"{h} friction cone", ca.vertcat(un, mu_h * un - ca.dot(u, t1), mu_h * un + ca.dot(u, t1),
+                                                 mu_h * un - ca.dot(u, t2), mu_h * un + ca.dot(u, t2)))
+            for j in range(M):
+                obj_forces[j].append((pt, -sel[j + 1] * u))
+            cost += pp[f"{h}_w_track"] * ca.sumsqr(pt - target)
+
+        # ---- objects
+        mu_o = pp["mu_obj"]
+        for j in range(M):
+            pa, rpya, Ra = objs_a[j]
+            va = wa[f"o{j}_vel"]
+            vb = wb[f"o{j}_vel"]
+            pb = wb[f"o{j}_pose"]
+            add(f"o{j} kinematic integration", pb - wa[f"o{j}_pose"] - dt * vb)
+            mj = pp[f"o{j}_m"]
+            us = ca.reshape(wa[f"o{j}_us"], 3, 4)
+            corners = ca.reshape(pp[f"o{j}_corners"], 3, 4)
+            cpts = [pa + Ra @ corners[:, i] for i in range(4)]
+            allf = list(obj_forces[j]) + [(cpts[i], us[:, i]) for i in range(4)]
+            F = sum(u for _, u in allf)
+            T = sum(ca.cross(pt - pa, u) for pt, u in allf)
+            # linear: (v_{k+1} - v_k) = dt (m_r g / m_j * F + g)
+            add(f"o{j} linear dynamics", mj * (vb[0:3] - va[0:3]) - dt * (mass * G * F + mj * ca.DM(GRAVITY)))
+            Ib = ca.reshape(pp[f"o{j}_I"], 3, 3)
+            Rb = rpy_to_rot(pb[3:6])
+            wa_ = rpy_rate_matrix(rpya) @ va[3:6]
+            wb_ = rpy_rate_matrix(pb[3:6]) @ vb[3:6]
+            La = Ra @ (Ib @ (Ra.T @ wa_))
+            Lb = Rb @ (Ib @ (Rb.T @ wb_))
+            add(f"o{j} angular dynamics", (Lb - La) - dt * mass * G * T)
+            add(f"o{j} support contact (on surface, aligned)", ca.vertcat(pa[2] - pp[f"o{j}_zrest"], rpya[0], rpya[1]))
+            cones = []
+            for i in range(4):
+                cones += [mu_o * us[2, i] - us[0, i], mu_o * us[2, i] + us[0, i],
+                          mu_o * us[2, i] - us[1, i], mu_o * us[2, i] + us[1, i]]
+            add(f"o{j} support friction cone", ca.vertcat(*cones))
+            heading = Ra[:, 0]
+            lateral = Ra[:, 1]
+            add(f"o{j} rolling: no longitudinal wheel force", ca.vertcat(*[ca.dot(us[:, i], heading) for i in range(4)]))
+            axle_v = va[0:3] + ca.cross(wa_, Ra @ pp[f"o{j}_axle"])
+            add(f"o{j} nonholonomic: no lateral slip", ca.dot(axle_v, lateral))
+            att = pp[f"o{j}_att_sel"]
+            off = pp[f"o{j}_att_off"]
+            p_att = 0
+            rpy_att = 0
+            for i in range(M):
+                if i == j:
+                    continue
+                pi_, rpyi, Ri = objs_a[i]
+                p_att = p_att + att[i] * (pi_ + Ri @ off[0:3])
+                rpy_att = rpy_att + att[i] * (rpyi + ca.vertcat(0, 0, off[3]))
+            add(f"o{j} attachment", ca.vertcat(pa - p_att, rpya - rpy_att))
+            # object costs: placement goal and twist regulariser
+            goal = pp[f"o{j}_goal"]
+            cost += pp[f"o{j}_w_goal"] * (ca.sumsqr(pa - goal[0:3]) + 0.3 * (rpya[2] - goal[3]) ** 2)
+            cost += pp["w_stage"] * pp[f"o{j}_w_reg"] * ca.sumsqr(va)
+            cost += pp["w_stage"] * pp["w_force"] * 0.1 * ca.sumsqr(wa[f"o{j}_us"])
+
+        # ---- collisions: robot spheres vs object primitives
+        for i, s_idx in enumerate(st.obj_pairs):
+            sph = m.spheres[s_idx]
+            c = spheres[s_idx]
+            sel = pp[f"c{i}_sel"]
+            pose = pp[f"c{i}_pose"]
+            loc = pp[f"c{i}_loc"]
+            Rw = sel[0] * ca.reshape(pose[3:12], 3, 3)
+            pw = sel[0] * pose[0:3]
+            Rloc = rot_z_cs(loc[3], loc[4])
+            for j in range(M):
+                pj, _, Rj = objs_a[j]
+                Rw = Rw + sel[j + 1] * (Rj @ Rloc)
+                pw = pw + sel[j + 1] * (pj + Rj @ loc[0:3])
+            cl = Rw.T @ (c - pw)
+            half = pp[f"c{i}_half"]
+            wpen, whom, expo = pp[f"c{i}_w"][0], pp[f"c{i}_w"][1], pp[f"c{i}_w"][2]
+            d = box_sphere_distance(cl, half, sph.radius)
+            add(f"c{i} collision", d)
+            Fs = superellipsoid(cl, half, sph.radius, expo)
+            s = wa["slack"][i]
+            add(f"c{i} homotopy surrogate", Fs - 1 + s)
+            cost += pp["w_stage"] * wpen * ca.fmin(d, 0) ** 2
+            cost += pp["w_stage"] * whom * (pp["w_slack"] * s ** 2 + ca.fmax(1 - Fs, 0) ** 2)
+        for (i, j) in st.self_pairs:
+            si, sj = m.spheres[i], m.spheres[j]
+            dd = ca.sumsqr(spheres[i] - spheres[j]) - (si.radius + sj.radius + pp["self_margin"]) ** 2
+            add(f"self {i} {j}", dd)
+            cost += pp["w_stage"] * pp["w_self"] * ca.fmin(dd, 0) ** 2
+
+        # ---- stage costs
+        x, xd = wa["x"], wa["xd"]
+        xr = pp["x_ref"]
+        u_all = ca.vertcat(*[wa[f"u_{f}"] for f in FEET], *[wa[f"u_{h}"] for h in HANDS])
+        L_reg = (pp["w_post"] * ca.sumsqr(x[6:] - xr[6:]) + pp["w_xd"] * ca.sumsqr(xd[6:])
+                 + 10 * pp["w_xd"] * ca.sumsqr(xd[0:6]) + pp["w_acc"] * ca.sumsqr(wb["xd"] - xd)
+                 + pp["w_force"] * ca.sumsqr(u_all) + pp["w_upright"] * (x[3] ** 2 + x[4] ** 2))
+        mid = 0.5 * (limbs["left_foot"][0][0:2] + limbs["right_foot"][0][0:2])
+        L_kff = pp["w_kff"] * ca.sumsqr(mid - pp["foot_des"])
+        L_st = pp["w_st_com"] * ca.sumsqr(wa["com"][0:2] - mid) + pp["w_st_vel"] * ca.sumsqr(wa["comd"]) + L_kff
+        L_wk = pp["w_wk_base"] * ca.sumsqr(x[0:2] - xr[0:2]) + pp["w_wk_base"] * (x[5] - xr[5]) ** 2
+        cost += pp["w_stage"] * (pp["b_st"] * L_st + (1 - pp["b_st"]) * L_wk + L_reg)
+        # keyframe base cost, eq. (1), and initial-state anchor
+        xk = pp["x_kf"]
+        cost += pp["w_kfb_z"] * (x[2] - xk[2]) ** 2 + pp["w_kfb_th"] * ca.sumsqr(x[6:] - xk[6:])
+        cost += pp["w_anchor"] * ca.sumsqr(x - xr)
+        return rows, cost
+
+
+def rot_z_cs(c, s):
+    return ca.vertcat(ca.horzcat(c, -s, 0), ca.horzcat(s, c, 0), ca.horzcat(0, 0, 1))

@@ -1,0 +1,57 @@
+"""The symbolic G1 kinematics/centroidal terms agree with Pinocchio (1e-9)."""
+import numpy as np
+import pinocchio as pin
+
+from lomanip_to.model import FEET, HAND_POINT, SOLE_CENTER
+
+
+def _random_state(g1, rng):
+    x = np.zeros(35)
+    x[:3] = rng.uniform(-1, 1, 3)
+    x[3:6] = rng.uniform(-0.8, 0.8, 3)
+    x[6:] = rng.uniform(g1.q_lower, g1.q_upper)
+    xd = rng.normal(size=35)
+    return x, xd
+
+
+def test_model_dimensions(g1):
+    assert g1.nj == 29 and len(g1.joint_names) == 29
+    assert abs(g1.mass - 33.34) < 0.01
+    assert g1.joint_names[0] == "left_hip_pitch_joint" and g1.joint_names[-1] == "right_wrist_yaw_joint"
+    assert g1.tau_max[g1.joint_names.index("left_knee_joint")] == 139.0
+    x = g1.x_stand()
+    assert np.allclose(g1.q_to_x(g1.x_to_q(x)), x)
+
+
+def test_kinematics_and_cmm_match_pinocchio(g1):
+    m, d = g1.pin_model, g1.pin_model.createData()
+    f = g1.casadi_functions
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        x, xd = _random_state(g1, rng)
+        q, v = g1.x_to_q(x), g1.xd_to_v(x, xd)
+        assert np.allclose(g1.v_to_xd(x, v), xd, atol=1e-10)
+        pin.forwardKinematics(m, d, q, v)
+        # limb points
+        pts = np.array(f["limbs"](x))
+        for i, limb in enumerate(("left_foot", "right_foot", "left_hand", "right_hand")):
+            local = SOLE_CENTER if limb in FEET else HAND_POINT[limb]
+            ref = d.oMi[g1.limb_joint[limb]].act(local)
+            assert np.allclose(pts[:, i], ref, atol=1e-9)
+        # CoM
+        com_ref = pin.centerOfMass(m, d, q)
+        assert np.allclose(np.array(f["com"](x)).ravel(), com_ref, atol=1e-9)
+        # centroidal momentum and matrix
+        Ag = pin.ccrba(m, d, q, v)
+        h_ref = Ag @ v
+        assert np.allclose(np.array(f["h"](x, xd)).ravel(), h_ref, atol=1e-9)
+        # CMM in TO coordinates = Ag @ dv/dxd
+        T = np.zeros((35, 35))
+        for k in range(35):
+            e = np.zeros(35)
+            e[k] = 1.0
+            T[:, k] = g1.xd_to_v(x, e)
+        assert np.allclose(np.array(f["cmm"](x)), Ag @ T, atol=1e-9)
+        # numpy path equals casadi path
+        num = g1.numeric(x, xd)
+        assert np.allclose(num["h"], h_ref, atol=1e-9)
