@@ -45,6 +45,25 @@ def _pids_of(pattern: str) -> list[int]:
     return [int(p) for p in out if int(p) != os.getpid()]
 
 
+def _wait_for_images(count: int, timeout: float) -> None:
+    import rclpy
+    from rclpy.qos import qos_profile_sensor_data
+    from sensor_msgs.msg import Image
+
+    rclpy.init()
+    node = rclpy.create_node("orchestrator_test_watcher")
+    got = []
+    node.create_subscription(Image, "/lomanip/camera/rgb/image_raw", lambda m: got.append(1), qos_profile_sensor_data)
+    try:
+        deadline = time.monotonic() + timeout
+        while len(got) < count:
+            assert time.monotonic() < deadline, f"only {len(got)} images in {timeout} s"
+            rclpy.spin_once(node, timeout_sec=0.1)
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
 def _parent(pid: int) -> int:
     with open(f"/proc/{pid}/stat") as f:
         return int(f.read().rsplit(")", 1)[1].split()[1])
@@ -65,7 +84,7 @@ def test_killed_node_stops_the_graph_and_the_bag_is_readable(tmp_path):
         if "graph is up" in line:
             break
         assert time.monotonic() < deadline, "".join(output)
-    time.sleep(3.0)
+    _wait_for_images(count=20, timeout=90)   # slow machines take a while to open the GL context
     children = [p for p in _pids_of("lomanip_sim.sim_node") if _parent(p) == proc.pid]
     assert len(children) == 1, "".join(output)
     os.kill(children[0], signal.SIGKILL)

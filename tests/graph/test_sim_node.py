@@ -82,7 +82,7 @@ def test_streams_from_another_process(sim, client_node):
     # since a timed assertion here would fail on a loaded CI machine.
     assert rates["rgb"] >= 3 and rates["depth"] >= 3, rates
     assert rates["joints"] >= 20, rates
-    assert rtf and min(rtf[1:] or rtf) >= 0.5, rtf
+    assert rtf and sorted(rtf)[len(rtf) // 2] >= 0.8, rtf   # median; the first window includes start-up
 
     rgb, depth, info, joints = last["rgb"], last["depth"], last["info"], last["joints"]
     assert (rgb.encoding, rgb.width, rgb.height) == ("rgb8", 640, 480)

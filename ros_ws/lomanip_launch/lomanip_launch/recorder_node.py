@@ -86,20 +86,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--compress", action="store_true", help="zstd-compress messages")
     args, ros_args = parser.parse_known_args(argv)
     rclpy.init(args=ros_args)
+    node = None
     try:
         node = RecorderNode(args.bag, tuple(args.topics), args.compress)
+        rclpy.spin(node)
     except BagError as exc:
         print(f"lomanip_recorder: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
         return 2
-    try:
-        rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        summary = node.close()
-        node.get_logger().info(summary) if rclpy.ok() else print(summary, flush=True)
-        node.destroy_node()
+        if node is not None:
+            print(node.close(), flush=True)
+            node.destroy_node()
         rclpy.try_shutdown()
     return 0
 

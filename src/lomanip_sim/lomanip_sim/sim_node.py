@@ -278,21 +278,21 @@ class SimNode(Node):
 
 def main(argv: list[str] | None = None) -> int:
     rclpy.init(args=argv if argv is not None else sys.argv)
+    node = None
     try:
         node = SimNode()
+        executor = MultiThreadedExecutor(num_threads=3)
+        executor.add_node(node)
+        executor.spin()
     except (ScenarioError, ValueError) as exc:
         print(f"lomanip_sim: error: {exc}", file=sys.stderr, flush=True)
-        rclpy.try_shutdown()
         return 2
-    executor = MultiThreadedExecutor(num_threads=3)
-    executor.add_node(node)
-    try:
-        executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        pass   # Ctrl-C, also while the world is still being built
     finally:
-        node.shutdown()
-        node.destroy_node()
+        if node is not None:
+            node.shutdown()
+            node.destroy_node()
         rclpy.try_shutdown()
     return 0
 
