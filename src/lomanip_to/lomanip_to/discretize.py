@@ -20,7 +20,7 @@ INF = np.inf
 
 DEFAULT_WEIGHTS = {
     "w_post": 1.0, "w_xd": 0.05, "w_acc": 0.5, "w_force": 0.2, "w_st_com": 20.0, "w_st_vel": 10.0,
-    "w_kff": 5e2, "w_wk_base": 20.0, "w_upright": 20.0, "w_anchor": 1e3, "w_kfb_z": 100.0,
+    "w_kff": 5e2, "w_wk_base": 20.0, "w_upright": 20.0, "w_anchor": 10.0, "w_kfb_z": 100.0,
     "w_kfb_th": 10.0, "w_slack": 1e2, "w_self": 1e3, "w_swing": 2e3, "swing_clearance": 0.06,
     "w_pen": 1e4, "w_hom": 1e2, "w_obj_reg": 1.0, "w_goal": 1e3,
     "mu_foot": 0.6, "mu_hand": 0.8, "mu_obj": 0.5, "self_margin": 0.0,
@@ -260,9 +260,15 @@ class ProblemData:
                     pose0 = np.concatenate([np.asarray(o.position, float), o.rpy()])
                     setb(f"o{j}_pose", k, pose0, pose0)
             setb("slack", k, 0, INF if homotopy else 0)
-        for name in ("xd", "comd", "kk"):
-            setb(name, 0, 0, 0)
-            setb(name, N, 0, 0)
+        # start and end at rest: only xd is bounded (bounding the momenta too would leave the CMM
+        # rows of these knots with an all-zero Jacobian -> degenerate, slow ipopt convergence)
+        setb("xd", 0, 0, 0)
+        # the robot starts where it is: initial configuration fixed except the base height
+        # (anchored by a cost, so a slightly inconsistent start height stays feasible)
+        x0l, x0u = self.x_init.copy(), self.x_init.copy()
+        x0l[2], x0u[2] = 0.2, 1.6
+        setb("x", 0, x0l, x0u)
+        setb("xd", N, 0, 0)
         lbw[:, K] = 0
         ubw[:, K] = 0
 
@@ -287,11 +293,11 @@ class ProblemData:
                     rows(f"{f} inside contact patch", k, -he, he)
                 if c is None or cn is None or cn.object_id != c.object_id:
                     rows(f"{f} no slip", k, -INF, INF)
-                rows(f"{f} friction cone", k, 0, INF)
+                rows(f"{f} friction cone", k, 0 if c is not None else -INF, INF)
             for h in HANDS:
                 if self.contact(k, h) is None:
                     rows(f"{h} contact position", k, -INF, INF)
-                rows(f"{h} friction cone", k, 0, INF)
+                rows(f"{h} friction cone", k, 0 if self.contact(k, h) is not None else -INF, INF)
             for oid, j in self.midx.items():
                 mode = self.obj_mode(k, oid)
                 if last:
@@ -299,9 +305,13 @@ class ProblemData:
                 if mode in ("fixed", "attached"):
                     rows(f"o{j} linear dynamics", k, -INF, INF)
                     rows(f"o{j} angular dynamics", k, -INF, INF)
-                if mode not in ("supported", "rolling", "fixed"):
+                prev = self.obj_mode(k - 1, oid) if k > 0 else "fixed"
+                # fixed objects: pose constant through the integration rows; the resting rows are
+                # only needed at the first fixed knot after a motion (else they are dependent rows)
+                placed = mode == "fixed" and prev != "fixed"
+                if mode not in ("supported", "rolling") and not placed:
                     rows(f"o{j} support contact (on surface, aligned)", k, -INF, INF)
-                rows(f"o{j} support friction cone", k, 0, INF)
+                rows(f"o{j} support friction cone", k, 0 if mode in ("supported", "rolling") else -INF, INF)
                 if mode != "rolling":
                     rows(f"o{j} rolling: no longitudinal wheel force", k, -INF, INF)
                     rows(f"o{j} nonholonomic: no lateral slip", k, -INF, INF)
@@ -387,6 +397,14 @@ class ProblemData:
             for f in FEET:
                 if self.contact(k, f) is not None:
                     W0[W[f"u_{f}"], k] = np.tile([0, 0, 1.0 / (4 * nf)], 4)
+            # hands carrying a free object: share its weight (warm start only)
+            for h in HANDS:
+                c = self.contact(k, h)
+                if c is not None and c.object_id in self.midx and self.obj_mode(k, c.object_id) == "free":
+                    nh = sum(1 for hh in HANDS if self.contact(k, hh) is not None
+                             and self.contact(k, hh).object_id == c.object_id)
+                    mo = self._lumped(k, c.object_id)[0]
+                    W0[W[f"u_{h}"], k] = np.array([0, 0, -mo / (nh * m.mass)]) * 1.0
             for oid, j in self.midx.items():
                 W0[W[f"o{j}_pose"], k] = self.obj_nom[oid][k]
                 if k > 0 and self.obj_mode(k, oid) != "fixed" and self.obj_mode(k - 1, oid) != "fixed":

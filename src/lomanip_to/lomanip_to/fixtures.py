@@ -38,7 +38,7 @@ def config_path(name: str) -> str:
 def _subst(v, params):
     if isinstance(v, str) and "${" in v:
         expr = re.sub(r"\$\{(\w+)\}", lambda m: repr(params[m.group(1)]), v)
-        return eval(expr, {"__builtins__": {}}, {"pi": math.pi, "cos": math.cos, "sin": math.sin})
+        return eval(expr, {"__builtins__": {}}, {"pi": math.pi, "cos": math.cos, "sin": math.sin, "round": round})
     if isinstance(v, list):
         return [_subst(x, params) for x in v]
     if isinstance(v, dict):
@@ -97,6 +97,11 @@ def load_problem(name: str, overrides: dict | None = None, options: dict | None 
             so_.inertia = tuple(o["inertia"])
         objects.append(so_)
         frames[o["id"]] = (np.asarray(so_.position, float), R, rpy[2])
+
+    # derived frames: {name: {position: [...], yaw: expr}} (e.g. a grasp frame of a square box)
+    for name, fd in (raw.get("frames") or {}).items():
+        yaw = float(fd.get("yaw", 0.0))
+        frames[name] = (np.asarray(fd["position"], float), rpy_to_rot(np.array([0.0, 0.0, yaw])), yaw)
 
     def to_world_point(p, frame):
         if p is None:

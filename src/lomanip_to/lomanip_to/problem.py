@@ -218,6 +218,8 @@ class Options:
                                "left_forearm", "right_forearm")
     self_collision: bool = True
     weights: dict = field(default_factory=dict)
+    #: extra ipopt options (expert use; e.g. {"mu_strategy": "monotone"})
+    ipopt: dict = field(default_factory=dict)
 
     def replaced(self, **kw) -> "Options":
         return replace(self, **kw)

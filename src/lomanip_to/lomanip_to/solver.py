@@ -31,6 +31,8 @@ _WINDOWS: dict = {}
 _NLPS: dict = {}
 _SOLVERS: dict = {}
 _MODEL: list = []
+#: iteration cap of the homotopy guide stage (ellipsoid surrogate); the final stage is not capped
+GUIDE_STAGE_MAX_ITER = 80
 
 DYNAMICS_ROWS = ("kinematic integration", "CoM integration", "linear momentum dynamics",
                  "angular momentum dynamics", "CoM consistency", "centroidal momentum consistency (CMM)",
@@ -85,6 +87,7 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2) -> TORe
         "max_wall_time": float(opt.time_limit), "bound_push": 1e-6, "bound_frac": 1e-6,
         "nlp_scaling_max_gradient": 100.0, "sb": "yes",
     }
+    ipopt_opts.update(opt.ipopt or {})
     nlp, solver = get_solver(wd, data.structure, K, ipopt_opts, threads)
     build_time = time.perf_counter() - t_start
     stages_out = []
@@ -99,9 +102,12 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2) -> TORe
     for si, (expo, hard, pen, hom) in enumerate(homotopy_stages(opt)):
         lbw, ubw, lbg, ubg, Pm, W0 = data.fill(win, expo, hard, pen, hom)
         args = dict(lbx=_vec(lbw), ubx=_vec(ubw), lbg=_vec(lbg), ubg=_vec(ubg), p=_vec(Pm))
+        last_stage = si == len(homotopy_stages(opt)) - 1
         if z0 is None:
             args["x0"] = _vec(W0)
             s = solver
+            if not last_stage:  # the surrogate stage only guides: cap its iterations
+                s = _stage_solver(nlp, data.structure, K, ipopt_opts, "guide")
         else:
             args["x0"] = np.clip(z0, args["lbx"], args["ubx"])
             args["lam_x0"] = lam_x
@@ -141,6 +147,16 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2) -> TORe
     res.densify(opt.output_rate)
     res.data = data
     return res
+
+
+def _stage_solver(nlp, structure, K, ipopt_opts, tag):
+    key = (tag, structure, K, tuple(sorted(ipopt_opts.items())))
+    if key not in _SOLVERS:
+        o = dict(ipopt_opts)
+        o["max_iter"] = min(int(o["max_iter"]), GUIDE_STAGE_MAX_ITER)
+        o["acceptable_iter"] = 3
+        _SOLVERS[key] = nlp.solver(o)
+    return _SOLVERS[key]
 
 
 def _vec(A: np.ndarray) -> np.ndarray:

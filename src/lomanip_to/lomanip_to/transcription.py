@@ -284,14 +284,14 @@ class Window:
             F = sum(u for _, u in allf)
             T = sum(ca.cross(pt - pa, u) for pt, u in allf)
             # linear: (v_{k+1} - v_k) = dt (m_r g / m_j * F + g)
-            add(f"o{j} linear dynamics", mj * (vb[0:3] - va[0:3]) - dt * (mass * G * F + mj * ca.DM(GRAVITY)))
+            add(f"o{j} linear dynamics", (vb[0:3] - va[0:3]) - dt * (mass * G / mj * F + ca.DM(GRAVITY)))
             Ib = ca.reshape(pp[f"o{j}_I"], 3, 3)
             Rb = rpy_to_rot(pb[3:6])
             wa_ = rpy_rate_matrix(rpya) @ va[3:6]
             wb_ = rpy_rate_matrix(pb[3:6]) @ vb[3:6]
             La = Ra @ (Ib @ (Ra.T @ wa_))
             Lb = Rb @ (Ib @ (Rb.T @ wb_))
-            add(f"o{j} angular dynamics", (Lb - La) - dt * mass * G * T)
+            add(f"o{j} angular dynamics", (Lb - La) / mj - dt * mass * G / mj * T)
             add(f"o{j} support contact (on surface, aligned)", ca.vertcat(pa[2] - pp[f"o{j}_zrest"], rpya[0], rpya[1]))
             cones = []
             for i in range(4):

@@ -1,0 +1,117 @@
+"""lomanip_to node: the whole-body trajectory optimisation as a ROS 2 service.
+
+  /lomanip/to/optimize                  lomanip_msgs/srv/OptimizeTrajectory
+  /lomanip/trajectory                   lomanip_msgs/WholeBodyTrajectory (reliable, transient local)
+  /lomanip/trajectory/joint_trajectory  trajectory_msgs/JointTrajectory (29 G1 joints), same QoS
+  /lomanip/trajectory/base_trajectory   trajectory_msgs/MultiDOFJointTrajectory ("floating_base"), same QoS
+
+Invalid input is answered with its error code before any solve. Only a solve that converged AND
+passed the physical-consistency checks is returned as a trajectory and published; a failed solve
+returns TO_NOT_CONVERGED with the reason and the solver statistics, and an empty trajectory. One
+solve at a time: a request while another runs is answered BUSY.
+"""
+from __future__ import annotations
+
+import sys
+import threading
+import time
+
+import rclpy
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from trajectory_msgs.msg import JointTrajectory, MultiDOFJointTrajectory
+
+from lomanip_msgs.msg import ErrorCode, WholeBodyTrajectory
+from lomanip_msgs.srv import OptimizeTrajectory
+
+from . import conversions as conv
+from .problem import TO_NOT_CONVERGED, ProblemError
+
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+class TONode(Node):
+    def __init__(self) -> None:
+        super().__init__("lomanip_to")
+        self.threads = int(self.declare_parameter("threads", 2).value)
+        from .solver import default_model
+
+        t0 = time.perf_counter()
+        self.model = default_model()
+        self.joint_names = list(self.model.joint_names)
+        self.get_logger().info(f"G1 model loaded in {time.perf_counter() - t0:.1f} s "
+                               f"({len(self.joint_names)} joints)")
+        self._busy = threading.Lock()
+        self.pub_traj = self.create_publisher(WholeBodyTrajectory, "/lomanip/trajectory", LATCHED)
+        self.pub_joint = self.create_publisher(JointTrajectory, "/lomanip/trajectory/joint_trajectory", LATCHED)
+        self.pub_base = self.create_publisher(MultiDOFJointTrajectory, "/lomanip/trajectory/base_trajectory", LATCHED)
+        self.create_service(OptimizeTrajectory, "/lomanip/to/optimize", self._on_optimize,
+                            callback_group=ReentrantCallbackGroup())
+
+    def _on_optimize(self, request, response):
+        if not self._busy.acquire(blocking=False):
+            response.error_code = ErrorCode(val=ErrorCode.BUSY, message="another optimisation is running")
+            return response
+        try:
+            return self._optimize(request, response)
+        finally:
+            self._busy.release()
+
+    def _optimize(self, request, response):
+        from .problem import validate_problem
+        from .solver import solve
+
+        log = self.get_logger()
+        try:
+            problem = conv.problem_from_request(request, self.joint_names)
+            validate_problem(problem, self.model)
+        except ProblemError as exc:
+            response.error_code = ErrorCode(val=exc.code, message=f"{exc.where}: {exc.message}" if exc.where else exc.message)
+            log.warning(f"request refused: {response.error_code.message}")
+            return response
+        log.info(f"optimising {problem.name or 'trajectory'}: {len(problem.keyframes)} keyframes, "
+                 f"{len(problem.phases)} phases, {problem.duration:.1f} s")
+        try:
+            result = solve(problem, self.model, threads=self.threads)
+        except ProblemError as exc:
+            response.error_code = ErrorCode(val=exc.code, message=exc.message)
+            return response
+        stats = result.stats
+        response.trajectory.solver_statistics = conv.statistics_msg(stats)
+        log.info(f"{stats.status_message()}; {stats.iterations} iterations, build {stats.build_time:.1f} s, "
+                 f"solve {stats.solve_time:.1f} s")
+        if not result.success:
+            failed = [name for name, c in stats.checks.items() if not c.get("ok", False)]
+            reason = stats.status_message() + (f"; failed checks: {', '.join(failed)}" if failed else "")
+            response.error_code = ErrorCode(val=TO_NOT_CONVERGED, message=reason)
+            return response
+        stamp = self.get_clock().now().to_msg()
+        response.trajectory = conv.trajectory_msg(result, problem.phases, problem.name, stamp)
+        response.error_code = ErrorCode(val=ErrorCode.SUCCESS, message=stats.status_message())
+        self.pub_traj.publish(response.trajectory)
+        self.pub_joint.publish(response.trajectory.joint_trajectory)
+        self.pub_base.publish(response.trajectory.base_trajectory)
+        return response
+
+
+def main(argv: list[str] | None = None) -> int:
+    rclpy.init(args=argv if argv is not None else sys.argv)
+    node = None
+    try:
+        node = TONode()
+        executor = MultiThreadedExecutor(num_threads=2)
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,105 @@
+"""The TO node as a real process: a small solve over DDS, the latched trajectory, bad requests."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from .helpers import ros_process, wait_for
+
+pytestmark = pytest.mark.graph
+
+
+@pytest.fixture(scope="module")
+def to_node(tmp_path_factory):
+    log = tmp_path_factory.mktemp("to") / "to.log"
+    with ros_process(["-m", "lomanip_to.to_node"], log) as proc:
+        yield proc, log
+
+
+@pytest.fixture(scope="module")
+def client():
+    import rclpy
+
+    rclpy.init()
+    node = rclpy.create_node("to_test_client")
+    yield node
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def _spin(node):
+    import rclpy
+
+    return lambda: rclpy.spin_once(node, timeout_sec=0.05)
+
+
+def _call(node, request, to_node, timeout=240.0):
+    import rclpy
+
+    from lomanip_msgs.srv import OptimizeTrajectory
+
+    cli = node.create_client(OptimizeTrajectory, "/lomanip/to/optimize")
+    proc, log = to_node
+    wait_for(cli.service_is_ready, 120, "/lomanip/to/optimize", spin=_spin(node), proc=proc, log_path=log)
+    future = cli.call_async(request)
+    rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
+    assert future.done(), "no answer"
+    return future.result()
+
+
+def _request(name):
+    from lomanip_to import conversions as conv
+    from lomanip_to.fixtures import load_problem
+    from lomanip_to.solver import default_model
+
+    model = default_model()
+    return conv.request_from_problem(load_problem(name, model=model), model.joint_names)
+
+
+def test_one_step_is_solved_published_and_physically_consistent(to_node, client):
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    from lomanip_msgs.msg import ErrorCode, WholeBodyTrajectory
+
+    res = _call(client, _request("case_one_step"), to_node)
+    assert res.error_code.val == ErrorCode.SUCCESS, res.error_code.message
+    traj = res.trajectory
+    stats = traj.solver_statistics
+    assert stats.converged and stats.max_penetration <= 5e-3
+    n = len(traj.joint_trajectory.points)
+    assert n > 10 and len(traj.base_trajectory.points) == n == len(traj.com_position) == len(traj.contact_wrenches)
+    assert traj.joint_trajectory.joint_names[0] == "left_hip_pitch_joint" and len(traj.joint_trajectory.joint_names) == 29
+    times = [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in traj.joint_trajectory.points]
+    assert all(b > a for a, b in zip(times, times[1:]))
+    # Feet carry the weight: total vertical contact force ~ m g on average over the motion.
+    fz = [sum(w.wrench.force.z for w in k.wrenches) for k in traj.contact_wrenches]
+    assert sum(fz) / len(fz) == pytest.approx(33.34 * 9.81, rel=0.1)
+    # A late subscriber still gets it (transient local).
+    got = []
+    qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    sub = client.create_subscription(WholeBodyTrajectory, "/lomanip/trajectory", got.append, qos)
+    wait_for(lambda: got, 30, "latched trajectory", spin=_spin(client))
+    client.destroy_subscription(sub)
+    assert len(got[0].joint_trajectory.points) == n
+
+
+def test_bad_requests_get_codes_before_solving(to_node, client):
+    from lomanip_msgs.msg import ErrorCode
+
+    req = _request("case_lift_box")
+    req.keyframes.keyframes[0].contacts[0].object_id = "refrigerator"
+    res = _call(client, req, to_node, timeout=30)
+    assert res.error_code.val == ErrorCode.UNKNOWN_OBJECT and "refrigerator" in res.error_code.message
+
+    req = _request("case_lift_box")
+    req.keyframes.keyframes[0].joints.position[3] = math.nan
+    res = _call(client, req, to_node, timeout=30)
+    assert res.error_code.val == ErrorCode.INVALID_REQUEST and "NaN" in res.error_code.message
+
+    req = _request("case_lift_box")
+    phases = req.contact_schedule.phases
+    phases[1].start = phases[0].start   # overlaps the first phase
+    res = _call(client, req, to_node, timeout=30)
+    assert res.error_code.val == ErrorCode.INVALID_REQUEST and "overlap" in res.error_code.message
+    assert to_node[0].poll() is None

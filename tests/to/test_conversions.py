@@ -1,0 +1,65 @@
+"""TO problem <-> ROS messages: the fixtures survive a round trip; bad messages give error codes."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lomanip_to import conversions as conv
+from lomanip_to.fixtures import load_problem
+from lomanip_to.problem import INVALID_REQUEST, ProblemError, validate_problem
+
+
+@pytest.fixture(scope="module")
+def model():
+    from lomanip_to.solver import default_model
+
+    return default_model()
+
+
+@pytest.mark.parametrize("name", ["case_lift_box", "case_one_step", "s1_basket"])
+def test_fixture_round_trip(model, name):
+    prob = load_problem(name, model=model)
+    req = conv.request_from_problem(prob, model.joint_names)
+    back = conv.problem_from_request(req, model.joint_names)
+    validate_problem(back, model)
+    np.testing.assert_allclose(back.initial_configuration, prob.initial_configuration, atol=1e-9)
+    assert [o.id for o in back.objects] == [o.id for o in prob.objects]
+    for a, b in zip(back.objects, prob.objects):
+        np.testing.assert_allclose(a.position, b.position, atol=1e-9)
+        assert a.mass == pytest.approx(b.mass)
+        np.testing.assert_allclose(a.inertia_matrix(), b.inertia_matrix(), atol=1e-9)
+        assert [(p.kind, tuple(p.size)) for p in a.primitives] == [(p.kind, tuple(p.size)) for p in b.primitives]
+    assert len(back.phases) == len(prob.phases)
+    for a, b in zip(back.phases, prob.phases):
+        assert (a.start, a.end, a.phase_type, a.subtask_index) == pytest.approx((b.start, b.end, b.phase_type, b.subtask_index))
+        assert set(a.contacts) == set(b.contacts)
+        for limb in a.contacts:
+            ca, cb = a.contacts[limb], b.contacts[limb]
+            assert ca.object_id == cb.object_id
+            if cb.position is None:
+                assert ca.position is None
+            else:
+                np.testing.assert_allclose(ca.position, cb.position, atol=1e-9)
+                np.testing.assert_allclose(ca.normal, np.asarray(cb.normal) / np.linalg.norm(cb.normal), atol=1e-9)
+        assert {k: (m.mode, m.support, m.attached_to) for k, m in a.objects.items()} == \
+               {k: (m.mode, m.support, m.attached_to) for k, m in b.objects.items()}
+    for a, b in zip(back.keyframes, prob.keyframes):
+        np.testing.assert_allclose(a.x(), b.x(), atol=1e-9)
+
+
+def test_foreign_joint_names_are_refused(model):
+    prob = load_problem("case_lift_box", model=model)
+    req = conv.request_from_problem(prob, model.joint_names)
+    req.keyframes.keyframes[0].joints.name[0] = "panda_joint1"
+    with pytest.raises(ProblemError) as err:
+        conv.problem_from_request(req, model.joint_names)
+    assert err.value.code == INVALID_REQUEST and "panda_joint1" in err.value.message
+
+
+def test_unknown_motion_mode_is_refused(model):
+    prob = load_problem("case_lift_box", model=model)
+    req = conv.request_from_problem(prob, model.joint_names)
+    phase = next(p for p in req.contact_schedule.phases if p.object_motions)
+    phase.object_motions[0].mode = "teleport"
+    with pytest.raises(ProblemError, match="teleport"):
+        conv.problem_from_request(req, model.joint_names)

@@ -1,0 +1,81 @@
+"""Small whole-body TO cases solved end to end, checked for physical consistency (each < ~30 s)."""
+import numpy as np
+import pytest
+
+from lomanip_to import solver
+from lomanip_to.checks import TOL
+from lomanip_to.fixtures import load_problem
+
+
+def _assert_physical(res):
+    s = res.stats
+    assert s.converged, s.status_message()
+    assert s.max_dynamics_violation.value < 1e-4, s.max_dynamics_violation.text()
+    assert s.max_contact_violation.value < 1e-4, s.max_contact_violation.text()
+    for name, c in s.checks.items():
+        assert c["ok"], f"{name}: {c}"
+    assert s.max_penetration <= TOL["penetration"]
+    assert res.success
+
+
+def _assert_dense(res, g1):
+    assert res.t[0] == 0.0 and abs(res.t[-1] - res.t_knots[-1]) < 1e-9
+    assert np.allclose(np.diff(res.t)[:-1], 0.01)
+    n = len(res.t)
+    assert res.joint_positions.shape == (n, 29) and res.joint_velocities.shape == (n, 29)
+    assert res.base_quat_xyzw.shape == (n, 4)
+    assert np.allclose(np.linalg.norm(res.base_quat_xyzw, axis=1), 1.0)
+    for limb in res.limbs:
+        assert res.forces[limb].shape == (n, 3)
+    assert res.com.shape == (n, 3) and res.angular_momentum.shape == (n, 3)
+    # the dense grid passes through the knots
+    i = np.searchsorted(res.t, res.t_knots[3])
+    assert np.allclose(res.joint_positions[i], res.x_knots[3, 6:], atol=1e-9)
+
+
+def test_stand_still(g1):
+    res = solver.solve(load_problem("case_stand", model=g1), g1)
+    _assert_physical(res)
+    _assert_dense(res, g1)
+    # total vertical force = weight
+    fz = sum(res.forces_knots[f][:, 2] for f in ("left_foot", "right_foot"))
+    assert np.allclose(fz, g1.mass * 9.81, rtol=1e-3)
+    assert res.stats.solve_time < 10
+
+
+def test_one_step(g1):
+    res = solver.solve(load_problem("case_one_step", model=g1), g1)
+    _assert_physical(res)
+    lf = res.points_knots["left_foot"]
+    # the left foot moved forward, the right one did not
+    assert lf[-1, 0] - lf[0, 0] > 0.07  # mid-foot pulled towards +0.1 m by eq. (2)
+    rf = res.points_knots["right_foot"]
+    assert np.linalg.norm(rf[-1] - rf[0]) < 1e-3
+    # swing: left foot has no force while it is in the air
+    swing = [k for k, o in enumerate(res.contact_objects_knots["left_foot"]) if not o]
+    assert swing and np.allclose(res.forces_knots["left_foot"][swing], 0.0)
+    assert res.points_knots["left_foot"][swing, 2].max() > 0.02
+
+
+def test_lift_light_box(g1):
+    prob = load_problem("case_lift_box", model=g1)
+    res = solver.solve(prob, g1)
+    _assert_physical(res)
+    box = res.object_pose_knots["box"]
+    assert box[-1, 2] - box[0, 2] > 0.08  # lifted ~10 cm
+    # Newton's third law: while free, the box's momentum changes by gravity + the hands' reaction
+    k = len(res.t_knots) - 3
+    t = res.t_knots
+    vel = res.object_vel_knots["box"]
+    f_on_box = -(res.forces_knots["left_hand"][k] + res.forces_knots["right_hand"][k])
+    m_box = prob.object("box").mass
+    acc = (vel[k + 1, :3] - vel[k, :3]) / (t[k + 1] - t[k])
+    assert np.allclose(m_box * acc, f_on_box + m_box * np.array([0, 0, -9.81]), atol=1e-3)
+
+
+def test_failed_solve_is_reported_as_failed(g1):
+    prob = load_problem("case_one_step", model=g1, options={"max_iterations": 3})
+    res = solver.solve(prob, g1)
+    assert not res.stats.converged
+    assert not res.success
+    assert "NOT converged" in res.stats.status_message()
