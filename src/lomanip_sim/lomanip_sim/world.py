@@ -486,3 +486,17 @@ def build_world(params: ScenarioParams) -> World:
         actuator_ids=np.array(aids),
         torque_limits=limits,
     )
+
+
+def build_robot_model() -> mujoco.MjModel:
+    """The G1 alone (no scene): g1.xml plus the hand sites and hand collision proxies of the world.
+
+    For kinematic users (IK retargeting, visualisation) that need the same frames as the sim.
+    """
+    try:
+        spec = mujoco.MjSpec.from_file(str(g1_mjcf_path()))
+    except Exception as e:  # mujoco raises plain ValueError on parse problems
+        raise WorldBuildError(f"cannot load {g1_mjcf_path()}: {e}") from e
+    _convert_actuators_to_motors(spec)
+    _add_hands(spec)
+    return spec.compile()

@@ -1,0 +1,276 @@
+"""Retargeting (paper Sec. III-A3): contacts + a human pose -> a feasible 35-D G1 keyframe.
+
+Differential IK with mink on the same G1 model the simulator uses (g1.xml + hand sites):
+
+* hand and foot contacts are the primary tasks (high weight); a keyframe is accepted only if every
+  contact is reached within ``contact_tolerance`` (1 cm by default);
+* stance feet are flat on their surface (sole normal = surface normal, yaw from the base);
+* the base orientation comes from the human body (rigid transform of the demonstration);
+* the human joint angles mapped onto the G1's matching joints act as a posture regulariser
+  (HumanPlus-style: only joints with a counterpart are used);
+* the CoM is pulled over the mid-foot point so stance keyframes are statically plausible;
+* joint limits and self-collision (arms vs torso, leg vs leg, hands vs thighs) are hard limits.
+
+Simplification (named): hand orientation is not constrained (point contacts, as in the TO).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import lomanip_sim  # noqa: F401  (headless GL default before mujoco loads)
+import mink
+import mujoco
+import numpy as np
+
+from lomanip_sim import frames
+from lomanip_sim.robot_model import G1_JOINT_NAMES
+from lomanip_sim.world import build_robot_model
+
+#: lomanip_msgs/ErrorCode values used here.
+RETARGETING_INFEASIBLE = -5
+INVALID_REQUEST = -1
+
+LIMBS = ("left_foot", "right_foot", "left_hand", "right_hand")
+FEET = ("left_foot", "right_foot")
+HANDS = ("left_hand", "right_hand")
+
+#: Self-collision pairs checked as hard limits (bodies whose collision geoms must stay apart).
+_SELF_COLLISION_BODIES = (
+    (("left_elbow_link", "left_wrist_roll_link", "left_wrist_pitch_link", "left_wrist_yaw_link"),
+     ("torso_link", "pelvis", "left_hip_pitch_link", "left_hip_roll_link", "left_knee_link")),
+    (("right_elbow_link", "right_wrist_roll_link", "right_wrist_pitch_link", "right_wrist_yaw_link"),
+     ("torso_link", "pelvis", "right_hip_pitch_link", "right_hip_roll_link", "right_knee_link")),
+    (("left_knee_link", "left_ankle_pitch_link", "left_ankle_roll_link"),
+     ("right_knee_link", "right_ankle_pitch_link", "right_ankle_roll_link")),
+    (("left_wrist_yaw_link",), ("right_wrist_yaw_link",)),
+)
+
+
+class RetargetingError(ValueError):
+    """The targets cannot be met by a feasible G1 configuration; ``code`` is an ErrorCode value."""
+
+    def __init__(self, code: int, message: str):
+        super().__init__(message)
+        self.code = code
+
+
+@dataclass(frozen=True)
+class LimbTarget:
+    """Where a limb must touch: a world point on ``object_id`` with the outward surface normal."""
+
+    limb: str
+    position: np.ndarray
+    normal: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    object_id: str = "floor"
+
+
+@dataclass(frozen=True)
+class RetargetTarget:
+    """What one keyframe must satisfy (world frame)."""
+
+    limb_targets: tuple[LimbTarget, ...]
+    #: pelvis orientation (w, x, y, z) from the human body; None = keep the current yaw, level
+    base_orientation_wxyz: np.ndarray | None = None
+    #: human joint angles mapped onto G1 joint names (regulariser toward a human-like posture)
+    joint_prior: Mapping[str, float] = field(default_factory=dict)
+    #: feet pitch relative to their surface (the paper constrains it; 0 = flat)
+    feet_pitch: float = 0.0
+
+
+@dataclass
+class RetargetResult:
+    qpos: np.ndarray                 # 36: base position, base quaternion (w, x, y, z), 29 joints
+    residuals: dict[str, float]      # limb -> distance between its contact point and the target (m)
+    foot_tilt: dict[str, float]      # stance foot -> angle between sole normal and surface normal (rad)
+    min_self_distance: float         # m, over the self-collision pairs (negative = penetration)
+    within_joint_limits: bool
+    iterations: int
+    seconds: float
+
+    @property
+    def base_position(self) -> np.ndarray:
+        return self.qpos[:3]
+
+    @property
+    def base_quat_wxyz(self) -> np.ndarray:
+        return self.qpos[3:7]
+
+    @property
+    def joints(self) -> dict[str, float]:
+        return dict(zip(G1_JOINT_NAMES, self.qpos[7:].tolist()))
+
+
+def _finite(v, n: int, what: str) -> np.ndarray:
+    a = np.asarray(v, dtype=float).reshape(-1)
+    if a.size != n or not np.all(np.isfinite(a)):
+        raise RetargetingError(INVALID_REQUEST, f"{what} must be {n} finite numbers, got {a.tolist()}")
+    return a
+
+
+class Retargeter:
+    """Solves keyframes by differential IK; build once, call :meth:`solve` per keyframe."""
+
+    def __init__(self, max_iterations: int = 400, dt: float = 0.05, contact_tolerance: float = 0.01,
+                 solver: str = "daqp") -> None:
+        self.model = build_robot_model()
+        self.max_iterations = max_iterations
+        self.dt = dt
+        self.contact_tolerance = contact_tolerance
+        self.solver = solver
+        self.configuration = mink.Configuration(self.model)
+        self.stand = self.model.key("stand").qpos.copy()
+        self._sole_offset = self._measure_sole_offset()
+        self.limb_tasks = {
+            limb: mink.FrameTask(limb, "site", position_cost=100.0,
+                                 orientation_cost=20.0 if limb in FEET else 0.0, lm_damping=1e-2)
+            for limb in LIMBS
+        }
+        self.base_task = mink.FrameTask("pelvis", "body", position_cost=0.0, orientation_cost=5.0)
+        self.com_task = mink.ComTask(cost=[5.0, 5.0, 0.0])
+        self.posture_task = mink.PostureTask(self.model, cost=0.5)
+        self.limits = [mink.ConfigurationLimit(self.model),
+                       mink.CollisionAvoidanceLimit(self.model, self._collision_pairs(),
+                                                    minimum_distance_from_collisions=0.01,
+                                                    collision_detection_distance=0.05)]
+
+    def _measure_sole_offset(self) -> float:
+        """Height of the foot site above the sole (the lowest point of the foot contact spheres)."""
+        data = mujoco.MjData(self.model)
+        data.qpos[:] = self.stand
+        mujoco.mj_kinematics(self.model, data)
+        foot_body = self.model.site("left_foot").bodyid
+        bottoms = [data.geom_xpos[g][2] - self.model.geom_size[g][0] for g in range(self.model.ngeom)
+                   if self.model.geom_bodyid[g] == foot_body and self.model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE]
+        return float(data.site("left_foot").xpos[2] - min(bottoms))
+
+    def _collision_pairs(self) -> list[tuple[list[int], list[int]]]:
+        def geoms(bodies: Sequence[str]) -> list[int]:
+            ids = [self.model.body(b).id for b in bodies]
+            return [g for g in range(self.model.ngeom)
+                    if self.model.geom_bodyid[g] in ids and self.model.geom_contype[g]]
+        return [(geoms(a), geoms(b)) for a, b in _SELF_COLLISION_BODIES]
+
+    # ------------------------------------------------------------------------------------------
+    def solve(self, target: RetargetTarget, initial_qpos: np.ndarray | None = None) -> RetargetResult:
+        """A keyframe meeting ``target``; raises :class:`RetargetingError` if none is found."""
+        t0 = time.perf_counter()
+        targets = self._check(target)
+        q0 = self.stand.copy() if initial_qpos is None else _finite(initial_qpos, 36, "initial_qpos")
+        feet = [t for t in targets.values() if t.limb in FEET]
+        base_R = self._base_rotation(target, feet)
+        if initial_qpos is None and feet:   # start above the feet, facing the right way
+            mid = np.mean([t.position for t in feet], axis=0)
+            q0[0:2] = mid[:2]
+            q0[2] = mid[2] + self.stand[2]
+            q0[3:7] = frames.matrix_to_quat(base_R)
+        self.configuration.update(q0)
+
+        tasks = [self.base_task, self.posture_task]
+        self.base_task.set_target(mink.SE3.from_rotation_and_translation(
+            mink.SO3(frames.matrix_to_quat(base_R)), np.zeros(3)))
+        posture = self.stand.copy()
+        for name, angle in target.joint_prior.items():
+            if name not in G1_JOINT_NAMES:
+                raise RetargetingError(INVALID_REQUEST, f"joint prior names unknown G1 joint {name!r}")
+            posture[7 + G1_JOINT_NAMES.index(name)] = float(angle)
+        self.posture_task.set_target(posture)
+        for limb, t in targets.items():
+            task = self.limb_tasks[limb]
+            R = self._limb_rotation(limb, t, base_R, target.feet_pitch)
+            p = t.position + (self._sole_offset * t.normal / np.linalg.norm(t.normal) if limb in FEET else 0.0)
+            task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3(frames.matrix_to_quat(R)), p))
+            tasks.append(task)
+        if len(feet) == 2:
+            mid = np.mean([t.position for t in feet], axis=0)
+            self.com_task.set_target(np.array([mid[0], mid[1], 0.0]))
+            tasks.append(self.com_task)
+
+        iterations = 0
+        for iterations in range(1, self.max_iterations + 1):
+            vel = mink.solve_ik(self.configuration, tasks, self.dt, self.solver, damping=1e-3, limits=self.limits)
+            self.configuration.integrate_inplace(vel, self.dt)
+            if iterations % 10 == 0:
+                res = self._residuals(targets)
+                if max(res.values(), default=0.0) < 0.2 * self.contact_tolerance and np.linalg.norm(vel) < 1e-2:
+                    break
+        return self._result(targets, iterations, time.perf_counter() - t0)
+
+    def _check(self, target: RetargetTarget) -> dict[str, LimbTarget]:
+        targets: dict[str, LimbTarget] = {}
+        for t in target.limb_targets:
+            if t.limb not in LIMBS:
+                raise RetargetingError(INVALID_REQUEST, f"unknown limb {t.limb!r}; valid: {', '.join(LIMBS)}")
+            if t.limb in targets:
+                raise RetargetingError(INVALID_REQUEST, f"limb {t.limb} has two targets")
+            pos = _finite(t.position, 3, f"{t.limb} target position")
+            normal = _finite(t.normal, 3, f"{t.limb} surface normal")
+            if np.linalg.norm(normal) < 1e-9:
+                raise RetargetingError(INVALID_REQUEST, f"{t.limb} surface normal is zero")
+            targets[t.limb] = LimbTarget(t.limb, pos, normal / np.linalg.norm(normal), t.object_id)
+        if not any(limb in targets for limb in FEET):
+            raise RetargetingError(INVALID_REQUEST, "a keyframe needs at least one foot in contact")
+        if target.base_orientation_wxyz is not None:
+            _finite(target.base_orientation_wxyz, 4, "base orientation")
+        return targets
+
+    @staticmethod
+    def _base_rotation(target: RetargetTarget, feet: list[LimbTarget]) -> np.ndarray:
+        if target.base_orientation_wxyz is not None:
+            q = np.asarray(target.base_orientation_wxyz, float)
+            return frames.quat_to_matrix(q / np.linalg.norm(q))
+        return np.eye(3)
+
+    @staticmethod
+    def _limb_rotation(limb: str, t: LimbTarget, base_R: np.ndarray, feet_pitch: float) -> np.ndarray:
+        if limb not in FEET:
+            return np.eye(3)
+        # Sole z along the surface normal, sole x along the base heading projected on the surface.
+        z = t.normal
+        x = base_R[:, 0] - np.dot(base_R[:, 0], z) * z
+        if np.linalg.norm(x) < 1e-6:
+            x = np.array([1.0, 0.0, 0.0]) - z[0] * z
+        x /= np.linalg.norm(x)
+        R = np.column_stack([x, np.cross(z, x), z])
+        if feet_pitch:
+            c, s = np.cos(feet_pitch), np.sin(feet_pitch)
+            R = R @ np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+        return R
+
+    def _residuals(self, targets: dict[str, LimbTarget]) -> dict[str, float]:
+        out = {}
+        for limb, t in targets.items():
+            p = self.configuration.get_transform_frame_to_world(limb, "site").translation()
+            goal = t.position + (self._sole_offset * t.normal if limb in FEET else 0.0)
+            out[limb] = float(np.linalg.norm(p - goal))
+        return out
+
+    def _result(self, targets: dict[str, LimbTarget], iterations: int, seconds: float) -> RetargetResult:
+        model, data = self.model, self.configuration.data
+        q = self.configuration.q.copy()
+        residuals = self._residuals(targets)
+        tilt = {}
+        for limb, t in targets.items():
+            if limb in FEET:
+                z = data.site(limb).xmat.reshape(3, 3)[:, 2]
+                tilt[limb] = float(np.arccos(np.clip(np.dot(z, t.normal), -1.0, 1.0)))
+        lo, hi = model.jnt_range[1:, 0], model.jnt_range[1:, 1]
+        within = bool(np.all(q[7:] >= lo - 1e-6) and np.all(q[7:] <= hi + 1e-6))
+        min_dist = np.inf
+        fromto = np.zeros(6)
+        for a_list, b_list in self._collision_pairs():
+            for a in a_list:
+                for b in b_list:
+                    min_dist = min(min_dist, mujoco.mj_geomDistance(model, data, a, b, 0.1, fromto))
+        result = RetargetResult(q, residuals, tilt, float(min_dist), within, iterations, seconds)
+        worst = max(residuals, key=residuals.get)
+        if residuals[worst] > self.contact_tolerance:
+            raise RetargetingError(RETARGETING_INFEASIBLE,
+                                   f"{worst} cannot reach its contact on {targets[worst].object_id}: "
+                                   f"{residuals[worst] * 100:.1f} cm away after {iterations} IK iterations")
+        if not within:
+            raise RetargetingError(RETARGETING_INFEASIBLE, "IK left a joint outside its limits")
+        if min_dist < 0.0:
+            raise RetargetingError(RETARGETING_INFEASIBLE, f"self-collision ({min_dist * 1000:.1f} mm)")
+        return result
