@@ -1,0 +1,234 @@
+"""Contact schedule between keyframes: footsteps, hand contacts made and broken, carried objects.
+
+One keyframe per subtask (retargeted configuration + its contacts). Between the robot's current
+stance and each keyframe the schedule inserts:
+
+1. walking: footsteps from the current feet to the keyframe's feet (each step = a single-support
+   phase with the swing foot free, then a double-support phase), at most ``max_step_length`` per
+   step, onto the floor or onto an object's top (stepping on the box in S1); hands that hold a
+   carried object keep holding it and the object moves with them (``free``);
+2. the manipulation of the subtask, from its verb and its contacts:
+   * pick / grab / lift / take: reach (no hand contact) -> grasp (hands on the object, object still)
+     -> lift (object ``free``, carried from then on);
+   * place / put / set: lower the carried object to its placement goal (``free``) -> release (hands
+     still in contact, object resting) -> retract (hands free); the object is no longer carried;
+   * push: hands on the object, the object moves (``rolling`` for wheeled objects, otherwise
+     ``supported``, i.e. sliding) while the robot walks behind it to the keyframe's feet;
+   * step on / climb: the feet end on the object's top (handled by the footsteps).
+   A prompt may chain several ("step on the box and grab the basket").
+
+The output uses lomanip_to's problem types, so a schedule goes straight into the TO. Timing comes
+from :class:`Timing` (parameters, not constants). Simplification (named): footsteps follow a
+straight line between stances (no obstacle-aware footstep search).
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from lomanip_to.problem import FLOOR, STANCE, WALKING, ContactPhase, ContactSpec, Keyframe, ObjectMotion, PlacementGoal
+
+from .retargeting import FEET, HANDS, LimbTarget
+
+
+class ScheduleError(ValueError):
+    """The keyframes cannot be turned into a schedule (e.g. placing an object that is not held)."""
+
+    code = -5  # RETARGETING_INFEASIBLE
+
+
+_VERBS = {
+    "pick": ("pick up", "pick", "grab", "lift", "take", "grasp", "hold", "retrieve"),
+    "place": ("place", "put", "set down", "drop", "release", "load"),
+    "push": ("push", "roll", "slide"),
+    "step_on": ("step on", "step onto", "climb", "stand on"),
+}
+
+
+def actions_of(prompt: str) -> list[str]:
+    """Actions a prompt asks for, in the order they appear ("step on the box and grab ..." ->
+    ["step_on", "pick"])."""
+    text = prompt.lower()
+    found = []
+    for action, verbs in _VERBS.items():
+        positions = [m.start() for v in verbs for m in re.finditer(rf"\b{re.escape(v)}\b", text)]
+        if positions:
+            found.append((min(positions), action))
+    return [a for _, a in sorted(found)]
+
+
+@dataclass(frozen=True)
+class Timing:
+    step: float = 0.6               # single support per step (s)
+    double_support: float = 0.3     # between steps
+    max_step_length: float = 0.25   # m per step of one foot
+    reach: float = 0.8              # move the hands to the object
+    grasp: float = 0.4              # hands in contact before the object moves
+    manipulate: float = 0.8         # lift / lower
+    release: float = 0.4            # hands still in contact after the object rests
+    retract: float = 0.6            # hands back, double support
+
+
+@dataclass
+class Stance:
+    """Where the feet are: world positions of the sole centres and what they stand on."""
+
+    left: np.ndarray
+    right: np.ndarray
+    left_surface: str = FLOOR
+    right_surface: str = FLOOR
+
+    def foot(self, limb: str) -> np.ndarray:
+        return self.left if limb == "left_foot" else self.right
+
+    def surface(self, limb: str) -> str:
+        return self.left_surface if limb == "left_foot" else self.right_surface
+
+
+@dataclass
+class SubtaskKeyframe:
+    """A retargeted keyframe with its contacts (world frame) and the subtask it belongs to."""
+
+    index: int
+    prompt: str
+    qpos: np.ndarray                     # 36: base position, quaternion (w, x, y, z), 29 joints
+    contacts: list[LimbTarget]
+    rolling_objects: frozenset = frozenset()   # ids of wheeled objects (push -> ``rolling``)
+    placement: PlacementGoal | None = None
+    reference_object_id: str = ""
+
+
+@dataclass
+class Schedule:
+    phases: list[ContactPhase] = field(default_factory=list)
+    keyframes: list[Keyframe] = field(default_factory=list)
+    placement_goals: list[PlacementGoal] = field(default_factory=list)
+
+    @property
+    def duration(self) -> float:
+        return self.phases[-1].end if self.phases else 0.0
+
+
+class _Builder:
+    def __init__(self, stance: Stance, timing: Timing) -> None:
+        self.t = 0.0
+        self.stance = stance
+        self.timing = timing
+        self.held: dict[str, ContactSpec] = {}      # hand -> contact it holds
+        self.carried: set[str] = set()              # objects moving with the hands
+        self.phases: list[ContactPhase] = []
+
+    def _feet(self, only: str | None = None) -> dict[str, ContactSpec]:
+        out = {}
+        for f in FEET:
+            if only is None or f == only:
+                out[f] = ContactSpec(f, self.stance.surface(f), tuple(self.stance.foot(f)), (0.0, 0.0, 1.0))
+        return out
+
+    def add(self, duration: float, subtask: int, kind: str = STANCE, stance_foot: str | None = None,
+            hands: dict[str, ContactSpec] | None = None, objects: dict[str, ObjectMotion] | None = None) -> None:
+        contacts = self._feet(stance_foot if kind == WALKING else None)
+        contacts.update(hands if hands is not None else self.held)
+        self.phases.append(ContactPhase(start=self.t, end=self.t + duration, phase_type=kind, subtask_index=subtask,
+                                        contacts=contacts, objects=dict(objects if objects is not None else
+                                                                        {o: ObjectMotion("free") for o in self.carried})))
+        self.t += duration
+
+    def walk_to(self, targets: dict[str, tuple[np.ndarray, str]], subtask: int,
+                objects: dict[str, ObjectMotion] | None = None) -> None:
+        """Footsteps from the current stance to ``targets`` (foot -> (position, surface))."""
+        tm = self.timing
+        moves = {f: np.linalg.norm(targets[f][0][:2] - self.stance.foot(f)[:2]) + abs(targets[f][0][2] - self.stance.foot(f)[2])
+                 for f in targets}
+        moving = [f for f in FEET if f in targets and (moves[f] > 0.02 or targets[f][1] != self.stance.surface(f))]
+        if not moving:
+            return
+        n = max(1, math.ceil(max(moves[f] for f in moving) / tm.max_step_length))
+        starts = {f: self.stance.foot(f).copy() for f in moving}
+        # lead with the foot that has further to go; alternate feet, each moving 1/n of its way
+        order = sorted(moving, key=lambda f: -moves[f])
+        for i in range(1, n + 1):
+            for f in order:
+                other = "right_foot" if f == "left_foot" else "left_foot"
+                self.add(tm.step, subtask, WALKING, stance_foot=other, objects=objects)
+                pos = starts[f] + (i / n) * (targets[f][0] - starts[f])
+                surface = targets[f][1] if i == n else self.stance.surface(f)
+                if i < n:   # intermediate footholds stay on the surface the foot started on
+                    pos[2] = starts[f][2]
+                if f == "left_foot":
+                    self.stance.left, self.stance.left_surface = pos, surface
+                else:
+                    self.stance.right, self.stance.right_surface = pos, surface
+                self.add(tm.double_support, subtask, objects=objects)
+
+
+def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timing = Timing()) -> Schedule:
+    """Phases, keyframes (with their times) and placement goals for the TO."""
+    from lomanip_sim import frames
+
+    b = _Builder(Stance(initial.left.copy(), initial.right.copy(), initial.left_surface, initial.right_surface), timing)
+    out = Schedule()
+    tm = timing
+    for sk in subtasks:
+        actions = actions_of(sk.prompt)
+        if not actions:
+            raise ScheduleError(f"subtask {sk.index} ({sk.prompt!r}): no known action (pick, place, push, step on)")
+        feet = {c.limb: (np.asarray(c.position, float), c.object_id) for c in sk.contacts if c.limb in FEET}
+        hands = {c.limb: ContactSpec(c.limb, c.object_id, tuple(np.asarray(c.position, float)),
+                                     tuple(np.asarray(c.normal, float))) for c in sk.contacts if c.limb in HANDS}
+        kf_time = None
+        if "push" in actions:
+            if not hands:
+                raise ScheduleError(f"subtask {sk.index} ({sk.prompt!r}): push without a hand contact")
+            target = next(iter(hands.values())).object_id
+            b.add(tm.reach, sk.index, hands=dict(b.held))
+            b.held = dict(hands)
+            b.add(tm.grasp, sk.index, objects={})
+            kf_time = b.t
+            mode = "rolling" if target in sk.rolling_objects else "supported"
+            b.walk_to(feet, sk.index, objects={target: ObjectMotion(mode)})
+            b.add(tm.release, sk.index, objects={})
+            b.held = {}
+            b.add(tm.retract, sk.index, objects={})
+        else:
+            b.walk_to(feet, sk.index)
+            if "pick" in actions:
+                if not hands:
+                    raise ScheduleError(f"subtask {sk.index} ({sk.prompt!r}): pick without a hand contact")
+                obj = next(iter(hands.values())).object_id
+                b.add(tm.reach, sk.index, hands=dict(b.held))
+                b.held.update(hands)
+                b.add(tm.grasp, sk.index)
+                b.carried.add(obj)
+                b.add(tm.manipulate, sk.index)
+                kf_time = b.t
+            if "place" in actions:
+                if not b.carried:
+                    raise ScheduleError(f"subtask {sk.index} ({sk.prompt!r}): nothing is held to place")
+                if sk.placement is None:
+                    raise ScheduleError(f"subtask {sk.index} ({sk.prompt!r}): placement needs a goal (object, position, yaw)")
+                if sk.placement.object_id not in b.carried:
+                    raise ScheduleError(f"subtask {sk.index}: {sk.placement.object_id!r} is not the held object")
+                b.add(tm.manipulate, sk.index)
+                kf_time = b.t
+                out.placement_goals.append(PlacementGoal(sk.placement.object_id, tuple(sk.placement.position),
+                                                         sk.placement.yaw, time=b.t, weight=sk.placement.weight))
+                b.carried.discard(sk.placement.object_id)
+                b.add(tm.release, sk.index)
+                b.held = {h: c for h, c in b.held.items() if c.object_id != sk.placement.object_id}
+                b.add(tm.retract, sk.index)
+            if kf_time is None:          # step on only
+                b.add(tm.retract, sk.index)
+                kf_time = b.t
+        q = np.asarray(sk.qpos, float)
+        mid = np.mean([b.stance.left, b.stance.right], axis=0)
+        out.keyframes.append(Keyframe(
+            subtask_index=sk.index, base_position=tuple(q[:3]), base_quat_xyzw=tuple(frames.wxyz_to_xyzw(q[3:7])),
+            joints=tuple(q[7:]), contacts=list(hands.values()), desired_foot_xy=(float(mid[0]), float(mid[1])),
+            reference_object_id=sk.reference_object_id, prompt=sk.prompt, time=kf_time))
+    b.add(tm.retract, subtasks[-1].index if subtasks else 0)   # settle at the end
+    out.phases = b.phases
+    return out

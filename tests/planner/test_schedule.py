@@ -1,0 +1,85 @@
+"""Contact schedule generation: footsteps, grasp/carry/place, step onto the box, push."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lomanip_planner.retargeting import LimbTarget
+from lomanip_planner.schedule import ScheduleError, Stance, SubtaskKeyframe, Timing, actions_of, plan_schedule
+from lomanip_sim.robot_model import G1_STAND_QPOS
+from lomanip_to.problem import FLOOR, WALKING, PlacementGoal, Primitive, Problem, SceneObject, validate_problem
+
+
+def _feet(x, z=0.0, surface="floor"):
+    return [LimbTarget("left_foot", np.array([x, 0.12, z]), object_id=surface),
+            LimbTarget("right_foot", np.array([x, -0.12, z]), object_id=surface)]
+
+
+def _hands(x, z, obj, half=0.2):
+    return [LimbTarget("left_hand", np.array([x, half, z]), np.array([0, 1.0, 0]), obj),
+            LimbTarget("right_hand", np.array([x, -half, z]), np.array([0, -1.0, 0]), obj)]
+
+
+def _s1_subtasks():
+    q = G1_STAND_QPOS.copy()
+    return [SubtaskKeyframe(0, "pick up the box", q, _feet(0.0) + _hands(0.42, 0.15, "box")),
+            SubtaskKeyframe(1, "place the box next to the shelf", q, _feet(0.45) + _hands(0.87, 0.15, "box"),
+                            placement=PlacementGoal("box", (0.87, 0.0, 0.15), 0.0)),
+            SubtaskKeyframe(2, "step on the box and grab the basket", q,
+                            _feet(0.87, 0.30, "box") + [LimbTarget("right_hand", np.array([1.2, -0.05, 1.6]),
+                                                                   np.array([-1.0, 0, 0]), "basket")])]
+
+
+def _objects():
+    return [SceneObject("box", "box", True, (0.42, 0.0, 0.15), mass=2.5, primitives=[Primitive("box", (0.4, 0.4, 0.3))]),
+            SceneObject("basket", "basket", True, (1.3, 0.0, 1.6), mass=0.5, primitives=[Primitive("box", (0.3, 0.4, 0.25))])]
+
+
+def test_prompt_actions():
+    assert actions_of("step on the box and grab the basket") == ["step_on", "pick"]
+    assert actions_of("Place the box on the trolley") == ["place"]
+    assert actions_of("push the trolley forward") == ["push"]
+    assert actions_of("dance") == []
+
+
+def test_s1_schedule_is_valid_for_the_to():
+    stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+    sched = plan_schedule(stance, _s1_subtasks(), Timing())
+    phases = sched.phases
+    assert phases[0].start == 0.0 and all(a.end == pytest.approx(b.start) for a, b in zip(phases, phases[1:]))
+    # Single support while walking, the box moves only while held, it rests after the placement.
+    for ph in phases:
+        feet = [l for l in ph.contacts if l.endswith("foot")]
+        assert len(feet) == (1 if ph.phase_type == WALKING else 2)
+        if "box" in ph.objects:
+            assert {"left_hand", "right_hand"} <= set(ph.contacts)
+    walking_with_box = [ph for ph in phases if ph.phase_type == WALKING and "box" in ph.objects]
+    assert walking_with_box and all(ph.subtask_index == 1 for ph in walking_with_box)
+    last = phases[-1]
+    assert last.contacts["left_foot"].object_id == "box" and last.contacts["right_foot"].object_id == "box"
+    assert not any("box" in ph.objects for ph in phases if ph.subtask_index == 2)
+    # Keyframes at increasing times inside their subtask; the placement goal is timed.
+    times = [k.time for k in sched.keyframes]
+    assert times == sorted(times) and len(times) == 3
+    assert sched.placement_goals[0].object_id == "box" and sched.placement_goals[0].time == pytest.approx(times[1])
+    # Steps are at most max_step_length.
+    validate_problem(Problem(objects=_objects(), keyframes=sched.keyframes, phases=phases,
+                             initial_configuration=tuple([0, 0, 0.79, 0, 0, 0] + [0.0] * 29),
+                             placement_goals=sched.placement_goals))
+
+
+def test_push_makes_a_rolling_object_move_while_walking():
+    stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+    push = SubtaskKeyframe(0, "push the trolley forward", G1_STAND_QPOS.copy(),
+                           _feet(0.6) + _hands(0.5, 0.85, "trolley", half=0.2), rolling_objects=frozenset({"trolley"}))
+    sched = plan_schedule(stance, [push])
+    moving = [ph for ph in sched.phases if "trolley" in ph.objects]
+    assert moving and all(ph.objects["trolley"].mode == "rolling" for ph in moving)
+    assert any(ph.phase_type == WALKING for ph in moving)
+
+
+def test_placing_nothing_is_an_error():
+    stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+    with pytest.raises(ScheduleError, match="nothing is held"):
+        plan_schedule(stance, [SubtaskKeyframe(0, "place the box", G1_STAND_QPOS.copy(), _feet(0.0),
+                                               placement=PlacementGoal("box", (1, 0, 0.15), 0.0))])
