@@ -123,17 +123,20 @@ class Retargeter:
         self.stand = self.model.key("stand").qpos.copy()
         self._sole_offset = self._measure_sole_offset()
         self.limb_tasks = {
-            limb: mink.FrameTask(limb, "site", position_cost=100.0,
-                                 orientation_cost=20.0 if limb in FEET else 0.0, lm_damping=1e-2)
+            # Feet carry the robot: they outrank the hands, so an unreachable hand target shows as
+            # a hand residual instead of a lifted foot.
+            limb: mink.FrameTask(limb, "site", position_cost=1000.0 if limb in FEET else 100.0,
+                                 orientation_cost=200.0 if limb in FEET else 0.0, lm_damping=1e-2)
             for limb in LIMBS
         }
         self.base_task = mink.FrameTask("pelvis", "body", position_cost=0.0, orientation_cost=5.0)
-        self.com_task = mink.ComTask(cost=[5.0, 5.0, 0.0])
-        self.posture_task = mink.PostureTask(self.model, cost=0.5)
+        self.com_task = mink.ComTask(cost=[1.0, 1.0, 0.0])
+        self.posture_task = mink.PostureTask(self.model, cost=1e-2)
+        self._pairs = self._collision_pairs()
         self.limits = [mink.ConfigurationLimit(self.model),
-                       mink.CollisionAvoidanceLimit(self.model, self._collision_pairs(),
+                       mink.CollisionAvoidanceLimit(self.model, self._pairs,
                                                     minimum_distance_from_collisions=0.01,
-                                                    collision_detection_distance=0.05)]
+                                                    collision_detection_distance=0.15)]
 
     def _measure_sole_offset(self) -> float:
         """Height of the foot site above the sole (the lowest point of the foot contact spheres)."""
@@ -154,17 +157,51 @@ class Retargeter:
 
     # ------------------------------------------------------------------------------------------
     def solve(self, target: RetargetTarget, initial_qpos: np.ndarray | None = None) -> RetargetResult:
-        """A keyframe meeting ``target``; raises :class:`RetargetingError` if none is found."""
+        """A keyframe meeting ``target``; raises :class:`RetargetingError` if none is found.
+
+        Differential IK is local: when the first start (``initial_qpos``, else standing over the
+        feet) misses a contact, it restarts from a squat and from an arms-up posture and keeps the
+        best solution.
+        """
         t0 = time.perf_counter()
         targets = self._check(target)
-        q0 = self.stand.copy() if initial_qpos is None else _finite(initial_qpos, 36, "initial_qpos")
         feet = [t for t in targets.values() if t.limb in FEET]
         base_R = self._base_rotation(target, feet)
-        if initial_qpos is None and feet:   # start above the feet, facing the right way
+        starts = [] if initial_qpos is None else [_finite(initial_qpos, 36, "initial_qpos")]
+        starts += [self._seed(name, feet, base_R) for name in ("stand", "squat", "reach_up")]
+        best: tuple[tuple[bool, float], np.ndarray] | None = None
+        iterations_total = 0
+        for q0 in starts:
+            q, iterations = self._descend(target, targets, base_R, feet, q0)
+            iterations_total += iterations
+            worst = max(self._residuals(targets).values())
+            score = (self._min_self_distance() < 0.0, worst)   # collision-free first, then closest
+            if best is None or score < best[0]:
+                best = (score, q)
+            if not score[0] and worst <= self.contact_tolerance:
+                break
+        self.configuration.update(best[1])
+        return self._result(targets, iterations_total, time.perf_counter() - t0)
+
+    def _seed(self, name: str, feet: list[LimbTarget], base_R: np.ndarray) -> np.ndarray:
+        q = self.stand.copy()
+        if name == "squat":
+            for side in ("left", "right"):
+                for joint, v in (("hip_pitch", -0.9), ("knee", 1.8), ("ankle_pitch", -0.8), ("shoulder_pitch", -0.6)):
+                    q[7 + G1_JOINT_NAMES.index(f"{side}_{joint}_joint")] = v
+            q[7 + G1_JOINT_NAMES.index("waist_pitch_joint")] = 0.4
+        elif name == "reach_up":
+            for side in ("left", "right"):
+                q[7 + G1_JOINT_NAMES.index(f"{side}_shoulder_pitch_joint")] = -2.2
+        height = {"stand": self.stand[2], "squat": 0.45, "reach_up": self.stand[2]}[name]
+        if feet:   # start above the feet, facing the right way
             mid = np.mean([t.position for t in feet], axis=0)
-            q0[0:2] = mid[:2]
-            q0[2] = mid[2] + self.stand[2]
-            q0[3:7] = frames.matrix_to_quat(base_R)
+            q[0:3] = [mid[0], mid[1], mid[2] + height]
+            q[3:7] = frames.matrix_to_quat(base_R)
+        return q
+
+    def _descend(self, target: RetargetTarget, targets: dict[str, LimbTarget], base_R: np.ndarray,
+                 feet: list[LimbTarget], q0: np.ndarray) -> tuple[np.ndarray, int]:
         self.configuration.update(q0)
 
         tasks = [self.base_task, self.posture_task]
@@ -195,7 +232,7 @@ class Retargeter:
                 res = self._residuals(targets)
                 if max(res.values(), default=0.0) < 0.2 * self.contact_tolerance and np.linalg.norm(vel) < 1e-2:
                     break
-        return self._result(targets, iterations, time.perf_counter() - t0)
+        return self.configuration.q.copy(), iterations
 
     def _check(self, target: RetargetTarget) -> dict[str, LimbTarget]:
         targets: dict[str, LimbTarget] = {}
@@ -238,6 +275,13 @@ class Retargeter:
             R = R @ np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
         return R
 
+    def _min_self_distance(self) -> float:
+        """Smallest signed distance over the self-collision pairs (m) in the current configuration."""
+        model, data = self.model, self.configuration.data
+        fromto = np.zeros(6)
+        return float(min(mujoco.mj_geomDistance(model, data, a, b, 0.1, fromto)
+                         for a_list, b_list in self._pairs for a in a_list for b in b_list))
+
     def _residuals(self, targets: dict[str, LimbTarget]) -> dict[str, float]:
         out = {}
         for limb, t in targets.items():
@@ -257,12 +301,7 @@ class Retargeter:
                 tilt[limb] = float(np.arccos(np.clip(np.dot(z, t.normal), -1.0, 1.0)))
         lo, hi = model.jnt_range[1:, 0], model.jnt_range[1:, 1]
         within = bool(np.all(q[7:] >= lo - 1e-6) and np.all(q[7:] <= hi + 1e-6))
-        min_dist = np.inf
-        fromto = np.zeros(6)
-        for a_list, b_list in self._collision_pairs():
-            for a in a_list:
-                for b in b_list:
-                    min_dist = min(min_dist, mujoco.mj_geomDistance(model, data, a, b, 0.1, fromto))
+        min_dist = self._min_self_distance()
         result = RetargetResult(q, residuals, tilt, float(min_dist), within, iterations, seconds)
         worst = max(residuals, key=residuals.get)
         if residuals[worst] > self.contact_tolerance:

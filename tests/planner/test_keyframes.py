@@ -1,0 +1,62 @@
+"""Perception output -> retargeted keyframes -> schedule -> a valid TO problem, on S1's geometry."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lomanip_planner.keyframes import SubtaskPerception, build_problem, retarget_subtasks
+from lomanip_planner.retargeting import LimbTarget, Retargeter, RetargetingError
+from lomanip_planner.schedule import Stance
+from lomanip_sim import frames
+from lomanip_to.problem import PlacementGoal, Primitive, SceneObject, validate_problem
+
+# S1 defaults of lomanip_sim (scenarios.yaml): box 0.4 x 0.4 x 0.3 at (0.7, 0); shelf top 1.5 m with
+# its front face at x = 1.7; basket 0.3 x 0.4 x 0.25 on it, front wall 3 cm behind the edge.
+OBJECTS = [
+    SceneObject("box", "box", True, (0.70, 0.0, 0.15), mass=2.5, primitives=[Primitive("box", (0.4, 0.4, 0.3))]),
+    SceneObject("shelf", "shelf", False, (1.90, 1.0, 0.75), primitives=[Primitive("box", (0.4, 0.8, 1.5))]),
+    SceneObject("basket", "basket", True, (1.88, 1.0, 1.625), mass=0.5, primitives=[Primitive("box", (0.3, 0.4, 0.25))]),
+]
+
+
+def _s1_perception():
+    n = lambda *v: np.array(v, float)  # noqa: E731
+    return [
+        SubtaskPerception(0, "pick up the box", [
+            LimbTarget("left_foot", n(0.32, 0.12, 0.0)), LimbTarget("right_foot", n(0.32, -0.12, 0.0)),
+            LimbTarget("left_hand", n(0.70, 0.2, 0.22), n(0, 1, 0), "box"),
+            LimbTarget("right_hand", n(0.70, -0.2, 0.22), n(0, -1, 0), "box")]),
+        SubtaskPerception(1, "place the box next to the shelf", [
+            LimbTarget("left_foot", n(1.1, 1.12, 0.0)), LimbTarget("right_foot", n(1.1, 0.88, 0.0)),
+            LimbTarget("left_hand", n(1.48, 1.2, 0.22), n(0, 1, 0), "box"),
+            LimbTarget("right_hand", n(1.48, 0.8, 0.22), n(0, -1, 0), "box")]),
+        SubtaskPerception(2, "step on the box and grab the basket", [
+            LimbTarget("left_foot", n(1.50, 1.1, 0.0), object_id="box"),
+            LimbTarget("right_foot", n(1.50, 0.9, 0.0), object_id="box"),
+            LimbTarget("right_hand", n(1.73, 0.92, 1.68), n(-1, 0, 0), "basket")]),
+    ]
+
+
+def test_s1_from_perception_to_a_valid_to_problem():
+    retargeter = Retargeter()
+    stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+    placements = {"box": PlacementGoal("box", (1.48, 1.0, 0.15), 0.0)}
+    # The box gets placed before the robot steps on it: its top is at its placed height.
+    objects = {o.id: o for o in OBJECTS}
+    kfs = retarget_subtasks(_s1_perception(), OBJECTS, stance, retargeter, placements)
+    assert len(kfs) == 3
+    feet_z = [c.position[2] for c in kfs[2].contacts if c.limb.endswith("foot")]
+    assert feet_z == pytest.approx([0.30, 0.30])        # foot height set by the task (box top)
+    x0 = [0, 0, 0.79, 0, 0, 0] + [0.0] * 29
+    problem, schedule = build_problem(OBJECTS, kfs, stance, x0, name="s1_basket")
+    validate_problem(problem)
+    assert [k.subtask_index for k in problem.keyframes] == [0, 1, 2]
+    assert schedule.placement_goals[0].object_id == "box"
+    assert objects["box"].movable
+
+
+def test_hand_on_an_unknown_object_is_reported():
+    bad = _s1_perception()[:1]
+    bad[0].contacts[2] = LimbTarget("left_hand", np.array([0.7, 0.2, 0.2]), np.array([0, 1.0, 0]), "refrigerator")
+    with pytest.raises(RetargetingError, match="refrigerator"):
+        retarget_subtasks(bad, OBJECTS, Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0])), Retargeter())
