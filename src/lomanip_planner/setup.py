@@ -16,5 +16,5 @@ setup(
     include_package_data=True,
     zip_safe=False,
     python_requires=">=3.10",
-    entry_points={"console_scripts": []},
+    entry_points={"console_scripts": ["lomanip_planner_node = lomanip_planner.planner_node:main"]},
 )

@@ -1,0 +1,264 @@
+"""lomanip_planner node: the user-facing plan service and action.
+
+  /lomanip/plan               lomanip_msgs/srv/PlanTask     prompt list in, trajectory out
+  /lomanip/plan               lomanip_msgs/action/Plan      the same, with progress feedback; cancellable
+  /lomanip/keyframes          lomanip_msgs/KeyframeArray    (latched) keyframes of the last plan
+  /lomanip/contact_schedule   lomanip_msgs/ContactSchedule  (latched)
+
+Sequence: optional scenario reset (/lomanip/sim/reset) -> perception (/lomanip/perception/
+extract_contacts) -> retargeting and contact schedule (in this process) -> trajectory optimisation
+(/lomanip/to/optimize, which also publishes /lomanip/trajectory). One plan at a time: a request
+while one runs is answered BUSY; the running plan is not disturbed. Every stage has a timeout
+(parameters ``*_timeout``); a stage that fails ends the plan with that stage's error code.
+"""
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+import rclpy
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from tf2_msgs.msg import TFMessage
+
+from lomanip_msgs.action import Plan
+from lomanip_msgs.msg import ContactSchedule, ErrorCode, KeyframeArray, SceneObjects, StageTiming
+from lomanip_msgs.srv import ExtractContacts, OptimizeTrajectory, PlanTask, ResetScenario
+
+from . import conversions as conv
+
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+class PlanFailed(Exception):
+    def __init__(self, code: int, message: str):
+        super().__init__(message)
+        self.code = code
+
+
+@dataclass
+class Progress:
+    stage: str
+    subtask_index: int = 0
+    subtask_count: int = 0
+    iteration: int = 0
+    progress: float = 0.0
+    message: str = ""
+
+
+class PlannerNode(Node):
+    def __init__(self) -> None:
+        super().__init__("lomanip_planner")
+        self.timeouts = {stage: float(self.declare_parameter(f"{stage}_timeout", default).value)
+                         for stage, default in (("state", 10.0), ("reset", 60.0), ("perception", 300.0), ("retargeting", 60.0),
+                                                ("optimisation", 900.0))}
+        from .retargeting import Retargeter
+
+        self.retargeter = Retargeter()
+        self._busy = threading.Lock()
+        self._scene: SceneObjects | None = None
+        self._joints: JointState | None = None
+        self._pelvis = None
+        group = ReentrantCallbackGroup()
+        self.create_subscription(SceneObjects, "/lomanip/scene_objects", self._on_scene, LATCHED, callback_group=group)
+        self.create_subscription(JointState, "/joint_states", self._on_joints, 10, callback_group=group)
+        self.create_subscription(TFMessage, "/tf", self._on_tf, 10, callback_group=group)
+        self.pub_keyframes = self.create_publisher(KeyframeArray, "/lomanip/keyframes", LATCHED)
+        self.pub_schedule = self.create_publisher(ContactSchedule, "/lomanip/contact_schedule", LATCHED)
+        self.cli_reset = self.create_client(ResetScenario, "/lomanip/sim/reset", callback_group=group)
+        self.cli_perception = self.create_client(ExtractContacts, "/lomanip/perception/extract_contacts",
+                                                 callback_group=group)
+        self.cli_to = self.create_client(OptimizeTrajectory, "/lomanip/to/optimize", callback_group=group)
+        self.create_service(PlanTask, "/lomanip/plan", self._on_plan_service, callback_group=group)
+        self._action = ActionServer(self, Plan, "/lomanip/plan", execute_callback=self._on_plan_action,
+                                    goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
+                                    callback_group=group)
+        self.get_logger().info("plan service and action ready on /lomanip/plan")
+
+    # --- state from the sim ----------------------------------------------------------------------
+    def _on_scene(self, msg: SceneObjects) -> None:
+        self._scene = msg
+
+    def _on_joints(self, msg: JointState) -> None:
+        self._joints = msg
+
+    def _on_tf(self, msg: TFMessage) -> None:
+        for t in msg.transforms:
+            if t.header.frame_id == "world" and t.child_frame_id == "pelvis":
+                self._pelvis = t.transform
+
+    # --- entry points ----------------------------------------------------------------------------
+    def _on_goal(self, goal) -> GoalResponse:
+        return GoalResponse.REJECT if self._busy.locked() else GoalResponse.ACCEPT
+
+    def _on_plan_service(self, request: PlanTask.Request, response: PlanTask.Response):
+        return self._run(request, response, feedback=None, cancelled=lambda: False)
+
+    def _on_plan_action(self, goal_handle):
+        result = Plan.Result()
+
+        def feedback(p: Progress) -> None:
+            goal_handle.publish_feedback(Plan.Feedback(stage=p.stage, subtask_index=p.subtask_index,
+                                                       subtask_count=p.subtask_count, iteration=p.iteration,
+                                                       progress=p.progress, message=p.message))
+
+        self._run(goal_handle.request, result, feedback, lambda: goal_handle.is_cancel_requested)
+        if goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+        elif result.error_code.val == ErrorCode.SUCCESS:
+            goal_handle.succeed()
+        else:
+            goal_handle.abort()
+        return result
+
+    def _run(self, request, response, feedback: Callable[[Progress], None] | None, cancelled: Callable[[], bool]):
+        if not self._busy.acquire(blocking=False):
+            response.error_code = ErrorCode(val=ErrorCode.BUSY, message="a plan is already running; try again later")
+            return response
+        try:
+            self._plan(request, response, feedback or (lambda p: None), cancelled)
+        except PlanFailed as exc:
+            response.error_code = ErrorCode(val=exc.code, message=str(exc))
+            self.get_logger().warning(f"plan failed: {exc}")
+        finally:
+            self._busy.release()
+        return response
+
+    # --- the pipeline ------------------------------------------------------------------------------
+    def _call(self, client, request, stage: str, cancelled: Callable[[], bool]):
+        if not client.wait_for_service(timeout_sec=min(10.0, self.timeouts[stage])):
+            raise PlanFailed(ErrorCode.NOT_READY, f"{stage}: service {client.srv_name} is not available")
+        done = threading.Event()
+        future = client.call_async(request)
+        future.add_done_callback(lambda _: done.set())
+        deadline = time.monotonic() + self.timeouts[stage]
+        while not done.wait(0.2):
+            if cancelled():
+                future.cancel()
+                raise PlanFailed(ErrorCode.CANCELLED, f"cancelled during {stage}")
+            if time.monotonic() > deadline:
+                future.cancel()
+                raise PlanFailed(ErrorCode.TIMEOUT, f"{stage} did not answer within {self.timeouts[stage]:.0f} s")
+        return future.result()
+
+    def _plan(self, request, response, feedback, cancelled) -> None:
+        from lomanip_to.conversions import request_from_problem, schedule_msg, scene_from_msg
+        from lomanip_to.problem import ProblemError
+
+        from .keyframes import build_problem, retarget_subtasks
+        from .retargeting import RetargetingError
+        from .schedule import ScheduleError
+
+        log = self.get_logger()
+        prompts = [p.strip() for p in request.prompts]
+        if not prompts or any(not p for p in prompts):
+            raise PlanFailed(ErrorCode.INVALID_REQUEST, "prompts must be a non-empty list of non-empty strings")
+        n = len(prompts)
+        timings: list[StageTiming] = []
+
+        def stage_done(name: str, t0: float) -> None:
+            timings.append(StageTiming(stage=name, seconds=time.perf_counter() - t0))
+            response.timings = list(timings)
+
+        if request.scenario.name:
+            t0 = time.perf_counter()
+            feedback(Progress("reset", 0, n, message=f"resetting to {request.scenario.name}"))
+            self._scene = None
+            res = self._call(self.cli_reset, ResetScenario.Request(scenario=request.scenario), "reset", cancelled)
+            stage_done("reset", t0)
+            if res.error_code.val != ErrorCode.SUCCESS:
+                raise PlanFailed(res.error_code.val, f"reset: {res.error_code.message}")
+            self._scene = res.scene
+            time.sleep(0.2)   # let /joint_states and /tf report the new world
+        deadline = time.monotonic() + self.timeouts["state"]
+        while self._scene is None or self._joints is None or self._pelvis is None:
+            if time.monotonic() > deadline:
+                missing = [name for name, v in (("/lomanip/scene_objects", self._scene), ("/joint_states", self._joints),
+                                                ("/tf world->pelvis", self._pelvis)) if v is None]
+                raise PlanFailed(ErrorCode.NOT_READY, f"no data from the simulator on {', '.join(missing)} "
+                                 f"after {self.timeouts['state']:.0f} s; is lomanip_sim running?")
+            time.sleep(0.1)
+
+        t0 = time.perf_counter()
+        feedback(Progress("perception", 0, n, progress=0.05, message="extracting contacts"))
+        log.info(f"planning {n} subtasks: {prompts}")
+        per = self._call(self.cli_perception, ExtractContacts.Request(prompts=prompts), "perception", cancelled)
+        stage_done("perception", t0)
+        if per.error_code.val != ErrorCode.SUCCESS:
+            raise PlanFailed(per.error_code.val, f"perception: {per.error_code.message}")
+        response.contacts, response.human_poses = per.contacts, per.human_poses
+
+        t0 = time.perf_counter()
+        feedback(Progress("retargeting", 0, n, progress=0.3, message="retargeting keyframes"))
+        try:
+            objects = scene_from_msg(self._scene)
+            qpos = conv.robot_qpos(self._joints, self._pelvis)
+            stance = conv.stance_from_qpos(self.retargeter, qpos)
+            subtasks = conv.subtasks_from_perception(per.contacts, per.human_poses, prompts)
+            placements = {g.object_id: conv.placement_goal(g) for g in request.placement_goals}
+            keyframes = retarget_subtasks(subtasks, objects, stance, self.retargeter, placements, qpos)
+            problem, schedule = build_problem(objects, keyframes, stance, conv.x_from_qpos(qpos),
+                                              name=self._scene.scenario)
+        except (RetargetingError, ScheduleError, ProblemError) as exc:
+            raise PlanFailed(getattr(exc, "code", ErrorCode.RETARGETING_INFEASIBLE), f"retargeting: {exc}") from exc
+        kf_msg = conv.keyframe_array_msg(problem.keyframes, self.get_clock().now().to_msg())
+        response.keyframes = kf_msg
+        self.pub_keyframes.publish(kf_msg)
+        self.pub_schedule.publish(schedule_msg(problem.phases))
+        stage_done("retargeting", t0)
+        if cancelled():
+            raise PlanFailed(ErrorCode.CANCELLED, "cancelled after retargeting")
+
+        t0 = time.perf_counter()
+        feedback(Progress("optimisation", n - 1, n, progress=0.5,
+                          message=f"optimising {problem.duration:.1f} s, {len(problem.phases)} phases"))
+        to_request = request_from_problem(problem, self.retargeter_joint_names())
+        to_request.scene = self._scene
+        to_request.options = request.options
+        res = self._call(self.cli_to, to_request, "optimisation", cancelled)
+        stage_done("optimisation", t0)
+        if res.error_code.val != ErrorCode.SUCCESS:
+            response.trajectory.solver_statistics = res.trajectory.solver_statistics
+            raise PlanFailed(res.error_code.val, f"optimisation: {res.error_code.message}")
+        response.trajectory = res.trajectory
+        if request.execute:
+            raise PlanFailed(ErrorCode.NOT_READY, "execution under physics is not available yet "
+                             "(the trajectory is in this response and on /lomanip/trajectory)")
+        feedback(Progress("done", n - 1, n, progress=1.0, message="trajectory ready"))
+        response.error_code = ErrorCode(val=ErrorCode.SUCCESS, message=res.error_code.message)
+        log.info("plan ready: " + ", ".join(f"{t.stage} {t.seconds:.1f} s" for t in timings))
+
+    @staticmethod
+    def retargeter_joint_names() -> list[str]:
+        from lomanip_sim.robot_model import G1_JOINT_NAMES
+
+        return list(G1_JOINT_NAMES)
+
+
+def main(argv: list[str] | None = None) -> int:
+    rclpy.init(args=argv if argv is not None else sys.argv)
+    node = None
+    try:
+        node = PlannerNode()
+        executor = MultiThreadedExecutor(num_threads=4)
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
