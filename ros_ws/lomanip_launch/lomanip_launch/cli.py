@@ -2,6 +2,7 @@
 
     lomanip up [--scenario s1_basket] [--set box_mass=5.0] [--record runs/bag] [--duration 10]
     lomanip bag info runs/bag
+    lomanip plan [TASK | --prompt P ...] [--record] [--execute]
     lomanip demo
 """
 from __future__ import annotations
@@ -77,12 +78,16 @@ def build_graph(args: argparse.Namespace, run_dir: Path) -> ProcessGraph:
              NodeSpec("lomanip_to", [python, "-m", "lomanip_to.to_node", "--ros-args", "--params-file", str(params_file)]),
              NodeSpec("lomanip_planner", [python, "-m", "lomanip_planner.planner_node", "--ros-args",
                                           "--params-file", str(params_file)])]
+    exclude = list(getattr(args, "record_exclude", None) or [])
     if args.record:
         bag = Path(args.record)
         if bag.exists():
             raise UsageError(f"bag folder {bag} already exists; choose a new one")
-        specs.append(NodeSpec("lomanip_recorder", [python, "-m", "lomanip_launch.recorder_node", str(bag)]))
-    return ProcessGraph(specs, lomanip_environment(), run_dir / "logs")
+        specs.append(NodeSpec("lomanip_recorder", [python, "-m", "lomanip_launch.recorder_node", str(bag),
+                                                   *(["--exclude", *exclude] if exclude else [])]))
+    graph = ProcessGraph(specs, lomanip_environment(), run_dir / "logs")
+    graph.record_exclude = tuple(exclude)
+    return graph
 
 
 def _ros_node_names():
@@ -101,12 +106,12 @@ def _ros_node_names():
         probe.destroy_node()
         rclpy.try_shutdown()
 
-    def recorder_subscribed(patterns: tuple[str, ...]) -> bool:
+    def recorder_subscribed(patterns: tuple[str, ...], exclude: tuple[str, ...] = ()) -> bool:
         """True once every published topic the recorder should record has a subscriber."""
         from lomanip_launch.recorder_node import should_record
 
         rclpy.spin_once(probe, timeout_sec=0.05)
-        topics = [t for t, _ in probe.get_topic_names_and_types() if should_record(t, patterns)]
+        topics = [t for t, _ in probe.get_topic_names_and_types() if should_record(t, patterns, exclude)]
         return bool(topics) and all(probe.count_subscribers(t) > 0 for t in topics
                                     if probe.count_publishers(t) > 0)
 
@@ -132,14 +137,16 @@ def run_graph(graph: ProcessGraph, duration: float | None, ready_timeout: float 
             from lomanip_launch.recorder_node import DEFAULT_TOPICS
 
             deadline = time.monotonic() + 15.0   # the recorder subscribes as topics appear
-            while not names.recorder_subscribed(DEFAULT_TOPICS) and time.monotonic() < deadline:
+            exclude = tuple(getattr(graph, "record_exclude", ()))
+            while not names.recorder_subscribed(DEFAULT_TOPICS, exclude) and time.monotonic() < deadline:
                 graph.check()
                 time.sleep(0.2)
         print("[lomanip] graph is up:\n  " + "\n  ".join(graph.status_lines()), flush=True)
-        if on_ready is not None:
-            on_ready()
+        finished = on_ready(lambda: stop["sig"] is not None) if on_ready is not None else None
+        if finished is not None:      # on_ready did the job (e.g. a plan) and gives the exit code
+            code = finished
         end = time.monotonic() + duration if duration else None
-        while stop["sig"] is None and (end is None or time.monotonic() < end):
+        while finished is None and stop["sig"] is None and (end is None or time.monotonic() < end):
             graph.check()
             time.sleep(0.2)
         if stop["sig"] is not None:
@@ -201,6 +208,10 @@ def make_parser() -> argparse.ArgumentParser:
     info = bag_sub.add_parser("info", help="print topics, types, counts and duration of a bag")
     info.add_argument("bag")
     info.set_defaults(func=cmd_bag_info)
+
+    from lomanip_launch.plan_cmd import add_parser as add_plan_parser
+
+    add_plan_parser(sub)
 
     demo = sub.add_parser("demo", help="the main job (see README)")
     graph_options(demo)

@@ -22,26 +22,32 @@ from lomanip_launch.ros_types import message_class
 DEFAULT_TOPICS = ("/lomanip/", "/joint_states", "/tf", "/tf_static", "/diagnostics")
 
 
-def should_record(topic: str, patterns: tuple[str, ...]) -> bool:
-    """Exact names, or whole namespaces for patterns ending in '/'; never action internals."""
-    if "/_action/" in topic:
-        return False
+def _matches(topic: str, patterns: tuple[str, ...]) -> bool:
     return any(topic == p or (p.endswith("/") and topic.startswith(p)) for p in patterns)
 
 
+def should_record(topic: str, patterns: tuple[str, ...], exclude: tuple[str, ...] = ()) -> bool:
+    """Exact names, or whole namespaces for patterns ending in '/'; never action internals."""
+    if "/_action/" in topic or _matches(topic, exclude):
+        return False
+    return _matches(topic, patterns)
+
+
 class RecorderNode(Node):
-    def __init__(self, bag_path: Path, topics: tuple[str, ...], compress: bool) -> None:
+    def __init__(self, bag_path: Path, topics: tuple[str, ...], compress: bool, exclude: tuple[str, ...] = ()) -> None:
         super().__init__("lomanip_recorder")
         self.topics = topics
+        self.exclude = exclude
         self.writer = BagWriter(bag_path, compress=compress)
         self._subs = []
         self.create_timer(0.5, self.discover)
         self.discover()
-        self.get_logger().info(f"recording {', '.join(topics)} to {bag_path}")
+        skipped = f" except {', '.join(exclude)}" if exclude else ""
+        self.get_logger().info(f"recording {', '.join(topics)}{skipped} to {bag_path}")
 
     def discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():
-            if self.writer.has_topic(topic) or not should_record(topic, self.topics):
+            if self.writer.has_topic(topic) or not should_record(topic, self.topics, self.exclude):
                 continue
             publishers = self.get_publishers_info_by_topic(topic)
             if not publishers:
@@ -83,12 +89,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("bag", type=Path, help="output bag folder (must not exist)")
     parser.add_argument("--topics", nargs="*", default=list(DEFAULT_TOPICS),
                         help="topic names; a trailing '/' records the whole namespace")
+    parser.add_argument("--exclude", nargs="*", default=[],
+                        help="topic names or namespaces (trailing '/') not to record, e.g. /lomanip/camera/")
     parser.add_argument("--compress", action="store_true", help="zstd-compress messages")
     args, ros_args = parser.parse_known_args(argv)
     rclpy.init(args=ros_args)
     node = None
     try:
-        node = RecorderNode(args.bag, tuple(args.topics), args.compress)
+        node = RecorderNode(args.bag, tuple(args.topics), args.compress, tuple(args.exclude))
         rclpy.spin(node)
     except BagError as exc:
         print(f"lomanip_recorder: {exc}", file=sys.stderr)

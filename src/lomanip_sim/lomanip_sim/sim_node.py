@@ -62,6 +62,10 @@ class SimNode(Node):
         self.camera_period = 1.0 / p["camera_rate"]
         self.sim = Simulation(self.params)
         self._world_lock = threading.Lock()     # held by physics steps; taken by reset
+        # Lock hand-off is not fair: a physics loop that is behind real time re-takes the lock at
+        # once and can starve a reset for minutes on a loaded machine. A waiting reset sets this
+        # flag and the physics loop stands aside until it is done.
+        self._reset_waiting = threading.Event()
         self._camera_generation = 0             # bumped on reset so the render thread rebuilds
         self._snapshot_request: tuple[threading.Event, dict] | None = None
         self._stop = threading.Event()
@@ -118,6 +122,9 @@ class SimNode(Node):
         wall0, sim0 = time.perf_counter(), self.sim.time
         window_wall, window_sim = wall0, sim0
         while not self._stop.is_set():
+            if self._reset_waiting.is_set():
+                time.sleep(0.001)
+                continue
             with self._world_lock:
                 self.sim.step(chunk)
                 sim_t = self.sim.time
@@ -240,6 +247,7 @@ class SimNode(Node):
             response.error_code = ErrorCode(val=code, message=str(exc))
             self.get_logger().warning(f"reset refused: {exc}")
             return response
+        self._reset_waiting.set()
         try:
             with self._world_lock:
                 self.sim.reset(params)
@@ -249,6 +257,8 @@ class SimNode(Node):
             response.error_code = ErrorCode(val=ErrorCode.INVALID_REQUEST, message=f"cannot build world: {exc}")
             self.get_logger().error(response.error_code.message)
             return response
+        finally:
+            self._reset_waiting.clear()
         self._publish_scene()
         response.scene = conv.scene_objects_msg(self.get_clock().now().to_msg(), params.name, params.to_yaml(),
                                                 self.sim.scene_objects())

@@ -102,7 +102,7 @@ class Simulation:
 
     # ------------------------------------------------------------------ construction / reset
     def _build(self, params: ScenarioParams) -> None:
-        self.world: World = build_world(params)
+        self.world: World = params if isinstance(params, World) else build_world(params)
         self.model: mujoco.MjModel = self.world.model
         self.data = mujoco.MjData(self.model)
         m = self.model

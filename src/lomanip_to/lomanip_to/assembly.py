@@ -122,8 +122,10 @@ class AssembledNLP:
         self.f_expr, self.g_expr = f, g
         self.build_time = time.perf_counter() - t0
 
-    def solver(self, ipopt_opts: dict) -> ca.Function:
+    def solver(self, ipopt_opts: dict, iteration_callback=None) -> ca.Function:
         nlp = {"x": self.z_sym, "p": self.p_sym, "f": self.f_expr, "g": self.g_expr}
         opts = {"grad_f": self.F_grad, "jac_g": self.F_jac, "hess_lag": self.F_hess,
                 "print_time": False, "ipopt": ipopt_opts}
+        if iteration_callback is not None:
+            opts["iteration_callback"] = iteration_callback
         return ca.nlpsol("to", "ipopt", nlp, opts)

@@ -80,19 +80,25 @@ def self_pairs(model: G1Model) -> tuple:
 class ProblemData:
     """All numeric arrays of one TO problem (bounds, parameters, warm start) + its structure."""
 
-    def __init__(self, prob: Problem, model: G1Model):
+    def __init__(self, prob: Problem, model: G1Model, moving: list | None = None, pairs: list | None = None):
+        """``moving``/``pairs`` force the moving-object list and collision pairs (subtask segments
+        of a bigger problem share its window structure, so the window is built once)."""
         self.prob = prob
         self.model = model
         opt = prob.options
         self.w = dict(DEFAULT_WEIGHTS)
         self.w.update(opt.weights or {})
         self.grid = make_grid(prob)
-        self.moving = prob.moving_object_ids()
+        self.moving = list(moving) if moving is not None else prob.moving_object_ids()
         self.midx = {oid: j for j, oid in enumerate(self.moving)}
         self.x_init = np.asarray(prob.initial_configuration, float)
         self._object_timeline()
         self._warm_start_x()
-        self._choose_pairs()
+        if pairs is None:
+            self._choose_pairs()
+        else:
+            self.prims = [(o.id, pi) for o in prob.objects for pi in range(len(o.primitives))]
+            self.pairs = list(pairs)
         self.structure = Structure(len(self.moving), tuple(s for s, _ in self.pairs),
                                    self_pairs(model) if opt.self_collision else ())
 
@@ -152,14 +158,47 @@ class ProblemData:
             t = prob.keyframe_time(kf)
             self.kf_knots[int(np.argmin(np.abs(self.grid.t - t)))] = kf
         X = np.tile(self.x_init, (K, 1))
-        if opt.use_keyframe_warm_start:
-            for k in range(K):
-                sub = prob.phases[self.grid.phase[k]].subtask_index
-                kf = kf_by_sub.get(sub)
-                if kf is not None:
-                    X[k] = kf.x()
+        if opt.use_keyframe_warm_start and prob.keyframes:
+            X = self._keyframe_nominal()
             X[0] = self.x_init
         self.x_guess = X
+
+    def _sole_height(self, x: np.ndarray) -> float:
+        return float(min(self.model.numeric(x)["limbs"][f][0][2] for f in FEET))
+
+    def _keyframe_nominal(self, blend_time: float = 0.8) -> np.ndarray:
+        """Nominal state of every knot from the keyframes (paper IV-B: keyframes initialise the
+        shooting nodes of their subtask).  Named variant: between consecutive anchors (initial state,
+        keyframes at their times) the base position and yaw move linearly; the posture (joints,
+        base height above the support, roll/pitch) is the anchor's within ``blend_time`` of it and
+        blends to the initial standing posture in between, so a long carry is initialised walking
+        upright rather than squatting.  After the last keyframe its state is held."""
+        prob, t = self.prob, self.grid.t
+        anchors = [(0.0, self.x_init.copy())]
+        for kf in sorted(prob.keyframes, key=prob.keyframe_time):
+            anchors.append((prob.keyframe_time(kf), kf.x()))
+        h = [self._sole_height(x) for _, x in anchors]
+        stand = self.x_init.copy()
+        h_stand = self._sole_height(stand)
+        X = np.tile(anchors[-1][1], (len(t), 1))
+        for k, tk in enumerate(t):
+            for i in range(len(anchors) - 1):
+                (ta, xa), (tb, xb) = anchors[i], anchors[i + 1]
+                if not ta - 1e-9 <= tk <= tb + 1e-9:
+                    continue
+                s = (tk - ta) / max(tb - ta, 1e-9)
+                wa = max(0.0, 1.0 - (tk - ta) / blend_time)
+                wb = max(0.0, 1.0 - (tb - tk) / blend_time)
+                if wa + wb > 1.0:
+                    wa, wb = wa / (wa + wb), wb / (wa + wb)
+                ws = 1.0 - wa - wb
+                x = wa * xa + wb * xb + ws * stand
+                x[[0, 1, 5]] = (1 - s) * xa[[0, 1, 5]] + s * xb[[0, 1, 5]]
+                sup = (1 - s) * h[i] + s * h[i + 1]
+                x[2] = wa * xa[2] + wb * xb[2] + ws * (stand[2] - h_stand + sup)
+                X[k] = x
+                break
+        return X
 
     def _choose_pairs(self):
         """Minimal collision set: sphere groups from the options x object primitives whose

@@ -61,16 +61,37 @@ def load_options(d: dict | None, base: Options | None = None) -> Options:
     return opt
 
 
+def _scenario_params(raw: dict, overrides: dict) -> tuple[dict, dict]:
+    """(all substitution parameters, overrides meant for lomanip_sim) of a fixture."""
+    local = dict(raw.get("parameters") or {})
+    sim_over = {}
+    for k, v in (overrides or {}).items():
+        if k in local:
+            local[k] = v
+        elif raw.get("scenario"):
+            sim_over[k] = v
+        else:
+            raise ValueError(f"unknown fixture parameter {k!r} (known: {sorted(local)})")
+    return local, sim_over
+
+
 def load_problem(name: str, overrides: dict | None = None, options: dict | None = None,
                  model: G1Model | None = None) -> Problem:
-    """Load a fixture by name (``s1_basket``) or path; ``overrides`` replace its parameters."""
+    """Load a fixture by name (``s1_basket``) or path; ``overrides`` replace its parameters.
+
+    A fixture with ``scenario: <lomanip_sim scenario>`` takes its objects and their frames from the
+    simulated world (:func:`lomanip_to.scene.scenario_scene`); overrides that are not fixture
+    parameters (``box_mass``, ``box_yaw``, any scenarios.yaml key) go to the scenario.
+    """
     with open(config_path(name)) as f:
         raw = yaml.safe_load(f)
-    params = dict(raw.get("parameters") or {})
-    for k, v in (overrides or {}).items():
-        if k not in params:
-            raise ValueError(f"unknown fixture parameter {k!r} (known: {sorted(params)})")
-        params[k] = v
+    params, sim_over = _scenario_params(raw, overrides or {})
+    sc_objects, sc_frames = None, {}
+    if raw.get("scenario"):
+        from .scene import scenario_scene
+
+        sc_params, sc_objects, sc_frames = scenario_scene(raw["scenario"], sim_over)
+        params = {**sc_params.to_dict(), **params}
     raw = _subst({k: v for k, v in raw.items() if k != "parameters"}, params)
     model = model or G1Model()
     solver_defaults = {}
@@ -82,8 +103,8 @@ def load_problem(name: str, overrides: dict | None = None, options: dict | None 
     opt = load_options(raw.get("options"), opt)
     opt = load_options(options, opt)
 
-    objects = []
-    frames = {}
+    objects = list(sc_objects or [])
+    frames = {k: (fr.origin, fr.R, fr.yaw) for k, fr in sc_frames.items()}
     for o in raw.get("objects", []):
         rpy = [0.0, 0.0, float(o.get("yaw", 0.0))]
         R = rpy_to_rot(np.array(rpy))
@@ -99,9 +120,17 @@ def load_problem(name: str, overrides: dict | None = None, options: dict | None 
         frames[o["id"]] = (np.asarray(so_.position, float), R, rpy[2])
 
     # derived frames: {name: {position: [...], yaw: expr}} (e.g. a grasp frame of a square box)
+    # ``frame`` = parent frame; ``snap_yaw: P`` keeps only the parent yaw modulo P in [-P/2, P/2)
+    # (the grasp frame of a square box: the pair of faces closest to the robot's lateral axis)
     for name, fd in (raw.get("frames") or {}).items():
-        yaw = float(fd.get("yaw", 0.0))
-        frames[name] = (np.asarray(fd["position"], float), rpy_to_rot(np.array([0.0, 0.0, yaw])), yaw)
+        c0, R0, yaw0 = frames[fd["frame"]] if fd.get("frame") else (np.zeros(3), np.eye(3), 0.0)
+        if fd.get("snap_yaw"):
+            per = float(fd["snap_yaw"])
+            yaw0 = yaw0 - per * math.floor(yaw0 / per + 0.5)
+            R0 = rpy_to_rot(np.array([0.0, 0.0, yaw0]))
+        yaw = yaw0 + float(fd.get("yaw", 0.0))
+        frames[name] = (c0 + R0 @ np.asarray(fd.get("position", (0, 0, 0)), float),
+                        rpy_to_rot(np.array([0.0, 0.0, yaw])), yaw)
 
     def to_world_point(p, frame):
         if p is None:
@@ -160,6 +189,15 @@ def load_problem(name: str, overrides: dict | None = None, options: dict | None 
         fd = kd.get("desired_foot_xy")
         if fd is not None:
             fd = tuple(np.asarray(to_world_point([fd[0], fd[1], 0.0], kd.get("foot_frame", kd.get("frame", ""))))[:2])
+        if kd.get("ik", False):  # complete the hand-written keyframe (ik.py): contacts met exactly
+            from .ik import SOLE_FORWARD, complete_keyframe
+
+            hands = {c.limb: c.position for c in contacts if c.limb in ("left_hand", "right_hand")}
+            h = float(kd.get("foot_height", 0.0))
+            if fd is None:  # mid-foot of the nominal stance under the written base pose
+                fd = tuple(p[:2] + SOLE_FORWARD * np.array([np.cos(rpy[2]), np.sin(rpy[2])]))
+            xk = complete_keyframe(model, np.concatenate([p, rpy, th]), (h, h), hands)
+            p, rpy, th = xk[:3], xk[3:6], xk[6:]
         keyframes.append(Keyframe(subtask_index=int(kd["subtask"]), base_position=tuple(p),
                                   base_quat_xyzw=tuple(rot_to_quat_xyzw(rpy_to_rot(rpy))), joints=tuple(th),
                                   contacts=contacts, desired_foot_xy=fd,

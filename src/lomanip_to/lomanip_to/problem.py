@@ -212,6 +212,10 @@ class Options:
     constr_tol: float = 1e-4
     time_limit: float = 600.0
     print_level: int = 0
+    #: solve subtask by subtask (at rest at subtask boundaries), stitch, then polish the whole horizon
+    subtask_segments: bool = True
+    #: iteration cap of the whole-horizon polish after the subtask solves (0 = keep the stitched one)
+    polish_iterations: int = 60
     #: collision sphere groups checked against objects ("minimal collision set")
     collision_groups: tuple = ("left_foot", "right_foot", "left_shin", "right_shin", "left_thigh",
                                "right_thigh", "pelvis", "torso", "left_hand", "right_hand",

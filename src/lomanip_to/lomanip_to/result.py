@@ -31,6 +31,21 @@ class Violation:
 
 
 @dataclass
+class Progress:
+    """One ipopt iteration, as reported to ``solve(..., progress=callback)``."""
+
+    iteration: int  # counted over all stages and segments of the solve
+    objective: float
+    constraint_violation: float  # max over rows (bounds included), unscaled
+    stage: str  # e.g. "subtask 1 (3.0-11.4 s) surrogate guide", "whole-horizon polish final"
+    elapsed: float  # s since solve() started
+
+    def text(self) -> str:
+        return (f"iter {self.iteration:4d}  obj {self.objective:.4e}  viol {self.constraint_violation:.2e}  "
+                f"{self.elapsed:6.1f} s  [{self.stage}]")
+
+
+@dataclass
 class SolverStats:
     solver: str = "ipopt (window-assembled exact derivatives)"
     converged: bool = False
@@ -53,9 +68,13 @@ class SolverStats:
     success: bool = False  # converged AND the physical checks pass
 
     def status_message(self) -> str:
-        s = "converged" if self.converged else f"NOT converged ({self.status})"
-        return (f"{s}; max constraint violation {self.max_constraint_violation.text()}; "
-                f"max penetration {self.max_penetration * 1e3:.1f} mm at t={self.max_penetration_time:.2f} s")
+        """One line; a failure names the worst violated constraint with its time."""
+        pen = f"max penetration {self.max_penetration * 1e3:.1f} mm at t={self.max_penetration_time:.2f} s"
+        if self.converged:
+            return f"converged in {self.iterations} iterations; max constraint violation " \
+                   f"{self.max_constraint_violation.text()}; {pen}"
+        return (f"did not converge in {self.iterations} iterations ({self.status}); max constraint violation "
+                f"{self.max_constraint_violation.text()}; {pen}")
 
 
 @dataclass

@@ -24,15 +24,18 @@ from .checks import penetration_per_knot, run_checks
 from .discretize import ProblemData
 from .model import FEET, HANDS, LIMBS, SOLE_CORNERS, G1Model, rpy_to_rot
 from .problem import TO_NOT_CONVERGED, Problem, validate_problem
-from .result import SolverStats, TOResult, Violation
+from .result import Progress, SolverStats, TOResult, Violation
 from .transcription import Window
 
 _WINDOWS: dict = {}
 _NLPS: dict = {}
 _SOLVERS: dict = {}
 _MODEL: list = []
+_CALLBACKS: dict = {}
 #: iteration cap of the homotopy guide stage (ellipsoid surrogate); the final stage is not capped
 GUIDE_STAGE_MAX_ITER = 80
+#: horizons up to this many knots are solved in one piece (segmenting only pays for long tasks)
+SEGMENT_MIN_KNOTS = 60
 
 DYNAMICS_ROWS = ("kinematic integration", "CoM integration", "linear momentum dynamics",
                  "angular momentum dynamics", "CoM consistency", "centroidal momentum consistency (CMM)",
@@ -53,14 +56,64 @@ def get_window(model: G1Model, structure):
     return _WINDOWS[key]
 
 
-def get_solver(wd, structure, K: int, ipopt_opts: dict, threads: int = 2):
+class _IterationCallback(ca.Callback):
+    """ipopt iteration hook: forwards (objective, constraint values) of every iteration to the active
+    progress sink.  One instance per cached solver; the sink is swapped per solve."""
+
+    def __init__(self, name: str, nx: int, ng: int, np_: int):
+        ca.Callback.__init__(self)
+        self.nx, self.ng, self.np_ = nx, ng, np_
+        self.sink = None
+        self.construct(name, {})
+
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return "ret"
+
+    def get_sparsity_in(self, i):
+        n = ca.nlpsol_out(i)
+        if n == "f":
+            return ca.Sparsity.scalar()
+        if n in ("x", "lam_x"):
+            return ca.Sparsity.dense(self.nx)
+        if n in ("g", "lam_g"):
+            return ca.Sparsity.dense(self.ng)
+        if n == "lam_p":
+            return ca.Sparsity.dense(self.np_)
+        return ca.Sparsity(0, 0)
+
+    def eval(self, arg):
+        if self.sink is not None:
+            names = ca.nlpsol_out()
+            g = np.asarray(arg[names.index("g")]).ravel()
+            f = float(arg[names.index("f")])
+            return [1 if self.sink(f, g) else 0]
+        return [0]
+
+
+def _make_solver(nlp: AssembledNLP, opts: dict):
+    cb = _IterationCallback(f"progress_{len(_SOLVERS)}", nlp.nz, nlp.ngg, nlp.npar)
+    s = nlp.solver(opts, iteration_callback=cb)
+    _CALLBACKS[id(s)] = cb  # keep the callback alive with its solver
+    return s
+
+
+def get_solver(wd, structure, K: int, ipopt_opts: dict, threads: int = 2, tag: str = "main"):
     nkey = (structure, K)
     if nkey not in _NLPS:
         _NLPS[nkey] = AssembledNLP(wd, K, threads=threads)
     nlp = _NLPS[nkey]
-    skey = (nkey, tuple(sorted(ipopt_opts.items())))
+    skey = (tag, nkey, tuple(sorted(ipopt_opts.items())))
     if skey not in _SOLVERS:
-        _SOLVERS[skey] = nlp.solver(ipopt_opts)
+        _SOLVERS[skey] = _make_solver(nlp, ipopt_opts)
     return nlp, _SOLVERS[skey]
 
 
@@ -71,75 +124,176 @@ def homotopy_stages(opt) -> list:
     return [(2.0, opt.collision_hard_constraint, opt.collision_penalty, False)]
 
 
-def solve(prob: Problem, model: G1Model | None = None, threads: int = 2) -> TOResult:
-    """Solve the TO.  Raises ProblemError on invalid input (before any solve)."""
+def _ipopt_options(opt) -> dict:
+    o = {
+        "max_iter": int(opt.max_iterations), "tol": float(opt.tol), "constr_viol_tol": float(opt.constr_tol),
+        "acceptable_tol": 1e-2, "acceptable_constr_viol_tol": 1e-3, "acceptable_iter": 10,
+        "print_level": int(opt.print_level), "linear_solver": "mumps", "mu_strategy": "adaptive",
+        "bound_push": 1e-6, "bound_frac": 1e-6, "nlp_scaling_max_gradient": 100.0, "sb": "yes",
+    }
+    o.update(opt.ipopt or {})
+    return o
+
+
+def _warm_options(o: dict) -> dict:
+    w = dict(o)
+    w.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-6,
+              "warm_start_mult_bound_push": 1e-6, "mu_init": 1e-4})
+    return w
+
+
+class _Run:
+    """State of one solve: start time, iteration count, stage log, progress reporting."""
+
+    def __init__(self, prob: Problem, progress, t_start: float):
+        self.prob, self.progress, self.t_start = prob, progress, t_start
+        self.iterations = 0
+        self.stages: list = []
+        self.timed_out = False
+
+    def sink(self, stage: str, lbg: np.ndarray, ubg: np.ndarray):
+        def fn(f, g):
+            self.iterations += 1
+            viol = float(np.max(np.maximum(np.maximum(lbg - g, g - ubg), 0.0), initial=0.0))
+            elapsed = time.perf_counter() - self.t_start
+            if self.progress is not None:
+                try:
+                    self.progress(Progress(self.iterations, f, viol, stage, elapsed))
+                except Exception:  # noqa: BLE001 - a broken logger must not kill the solve
+                    pass
+            if elapsed > self.prob.options.time_limit:
+                self.timed_out = True
+                return True
+            return False
+        return fn
+
+
+def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=None, lam=None, stages=None,
+                max_iter: int | None = None):
+    """Homotopy stages on one ProblemData; returns (z, lam_x, lam_g, status, nlp, args, Pm, lbg, ubg, f)."""
+    opt = data.prob.options
+    K = data.grid.K
+    base = _ipopt_options(opt)
+    if max_iter is not None:
+        base["max_iter"] = int(max_iter)
+    stages = stages if stages is not None else homotopy_stages(opt)
+    status, sol = "", None
+    lam_x = lam_g = None
+    if lam is not None:
+        lam_x, lam_g = lam
+    for si, (expo, hard, pen, hom) in enumerate(stages):
+        lbw, ubw, lbg, ubg, Pm, W0 = data.fill(win, expo, hard, pen, hom)
+        args = dict(lbx=_vec(lbw), ubx=_vec(ubw), lbg=_vec(lbg), ubg=_vec(ubg), p=_vec(Pm))
+        last_stage = si == len(stages) - 1
+        if z0 is None:
+            args["x0"] = _vec(W0)
+            o, tag = dict(base), "main"
+            if not last_stage:  # the surrogate stage only guides: cap its iterations
+                o["max_iter"] = min(int(o["max_iter"]), GUIDE_STAGE_MAX_ITER)
+                o["acceptable_iter"] = 3
+                tag = "guide"
+        else:
+            args["x0"] = np.clip(z0, args["lbx"], args["ubx"])
+            if lam_x is not None:
+                args["lam_x0"], args["lam_g0"] = lam_x, lam_g
+            o, tag = _warm_options(base), "warm"
+        nlp, s = get_solver(wd, data.structure, K, o, threads, tag)
+        kind = "surrogate guide" if not last_stage else "final"
+        stage_name = f"{label}{kind}"
+        cb = _CALLBACKS[id(s)]
+        cb.sink = run.sink(stage_name, args["lbg"], args["ubg"])
+        t0 = time.perf_counter()
+        try:
+            sol = s(**args)
+        finally:
+            cb.sink = None
+        dt = time.perf_counter() - t0
+        st = s.stats()
+        status = st.get("return_status", "")
+        run.stages.append({"stage": stage_name, "exponent": expo, "hard": hard, "status": status,
+                           "iterations": int(st.get("iter_count", 0)), "time": dt})
+        z0 = np.array(sol["x"]).ravel()
+        lam_x = np.array(sol["lam_x"]).ravel()
+        lam_g = np.array(sol["lam_g"]).ravel()
+        if run.timed_out:
+            status = f"time limit {opt.time_limit:.0f} s reached"
+            break
+    return z0, lam_x, lam_g, status, nlp, args, Pm, lbg, ubg, float(sol["f"])
+
+
+def _converged(status: str) -> bool:
+    return status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+
+
+def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progress=None) -> TOResult:
+    """Solve the TO.  Raises ProblemError on invalid input (before any solve).
+
+    ``progress(Progress)`` is called once per ipopt iteration (iteration, objective, constraint
+    violation, stage, elapsed time).  Problems with several subtasks are solved subtask by subtask
+    first (each segment starts at rest in the state the previous one ended in, see
+    :func:`segments`); the segments are stitched into the whole horizon, which is then polished
+    for at most ``Options.polish_iterations``; if the polish does not converge, the stitched
+    trajectory (feasible for the whole problem, at rest at subtask boundaries) is kept.
+    """
     model = model or default_model()
     t_start = time.perf_counter()
     validate_problem(prob, model)
     opt = prob.options
     data = ProblemData(prob, model)
     win, wd = get_window(model, data.structure)
-    K = data.grid.K
-    ipopt_opts = {
-        "max_iter": int(opt.max_iterations), "tol": float(opt.tol), "constr_viol_tol": float(opt.constr_tol),
-        "acceptable_tol": 1e-2, "acceptable_constr_viol_tol": 1e-3, "acceptable_iter": 10,
-        "print_level": int(opt.print_level), "linear_solver": "mumps", "mu_strategy": "adaptive",
-        "max_wall_time": float(opt.time_limit), "bound_push": 1e-6, "bound_frac": 1e-6,
-        "nlp_scaling_max_gradient": 100.0, "sb": "yes",
-    }
-    ipopt_opts.update(opt.ipopt or {})
-    nlp, solver = get_solver(wd, data.structure, K, ipopt_opts, threads)
-    build_time = time.perf_counter() - t_start
-    stages_out = []
-    z0 = lam_x = lam_g = None
-    sol = None
-    solve_time = 0.0
-    iters = 0
-    status = ""
-    warm = dict(ipopt_opts)
-    warm.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-6,
-                 "warm_start_mult_bound_push": 1e-6, "mu_init": 1e-4})
-    for si, (expo, hard, pen, hom) in enumerate(homotopy_stages(opt)):
-        lbw, ubw, lbg, ubg, Pm, W0 = data.fill(win, expo, hard, pen, hom)
-        args = dict(lbx=_vec(lbw), ubx=_vec(ubw), lbg=_vec(lbg), ubg=_vec(ubg), p=_vec(Pm))
-        last_stage = si == len(homotopy_stages(opt)) - 1
-        if z0 is None:
-            args["x0"] = _vec(W0)
-            s = solver
-            if not last_stage:  # the surrogate stage only guides: cap its iterations
-                s = _stage_solver(nlp, data.structure, K, ipopt_opts, "guide")
+    run = _Run(prob, progress, t_start)
+    segs = segments(prob) if opt.subtask_segments and data.grid.K > SEGMENT_MIN_KNOTS else []
+    if len(segs) <= 1:
+        get_solver(wd, data.structure, data.grid.K, _ipopt_options(opt), threads)  # assemble before timing
+        build_time = time.perf_counter() - t_start
+        z, _, _, status, nlp, args, Pm, lbg, ubg, f = _run_stages(run, data, win, wd, threads, "")
+        converged = _converged(status)
+    else:
+        build_time = time.perf_counter() - t_start
+        x_init = np.asarray(prob.initial_configuration, float)
+        poses = {o.id: np.concatenate([np.asarray(o.position, float), o.rpy()]) for o in prob.objects}
+        parts, converged, status = [], True, ""
+        for i, (t0, t1) in enumerate(segs):
+            sp = segment_problem(prob, t0, t1, x_init, poses)
+            sd = ProblemData(sp, model, moving=data.moving, pairs=data.pairs)
+            res = _run_stages(run, sd, win, wd, threads, f"subtask {i} ({t0:.1f}-{t1:.1f} s) ")
+            parts.append((sd, res))
+            if not _converged(res[3]):
+                converged = False
+                status = f"{res[3]} in subtask {i} ({t0:.1f}-{t1:.1f} s)"
+                break
+            Wm = res[0].reshape(sd.grid.K + 1, win.W.n).T
+            x_init = Wm[win.W["x"], sd.grid.K - 1].copy()
+            for oid, j in sd.midx.items():
+                poses[oid] = Wm[win.W[f"o{j}_pose"], sd.grid.K - 1].copy()
+        if converged:
+            status = "Solve_Succeeded"
+            z_st, lam_st = _stitch(win, data, parts)
+            lbw, ubw, lbg, ubg, Pm, _ = data.fill(win, *homotopy_stages(opt)[-1])
+            nlp = get_nlp(wd, data.structure, data.grid.K, threads)
+            args = dict(lbx=_vec(lbw), ubx=_vec(ubw), lbg=_vec(lbg), ubg=_vec(ubg), p=_vec(Pm))
+            z, f = z_st, float(nlp.F_nlp(z_st, args["p"])[0])
+            if opt.polish_iterations > 0 and not run.timed_out:
+                zp, _, _, pst, nlp, args_p, Pm_p, lbg_p, ubg_p, fp = _run_stages(
+                    run, data, win, wd, threads, "whole-horizon polish ", z0=z_st, lam=lam_st,
+                    stages=[homotopy_stages(opt)[-1]], max_iter=opt.polish_iterations)
+                if _converged(pst):
+                    z, f, args, Pm, lbg, ubg = zp, fp, args_p, Pm_p, lbg_p, ubg_p
+                    status = pst
+                else:
+                    status = f"subtasks converged; whole-horizon polish: {pst} (stitched subtask solution kept)"
         else:
-            args["x0"] = np.clip(z0, args["lbx"], args["ubx"])
-            args["lam_x0"] = lam_x
-            args["lam_g0"] = lam_g
-            if "warm" not in _SOLVERS.get(("warm", data.structure, K), {}):
-                _SOLVERS[("warm", data.structure, K)] = {"warm": nlp.solver(warm)}
-            s = _SOLVERS[("warm", data.structure, K)]["warm"]
-        t0 = time.perf_counter()
-        sol = s(**args)
-        dt = time.perf_counter() - t0
-        st = s.stats()
-        solve_time += dt
-        iters += int(st.get("iter_count", 0))
-        status = st.get("return_status", "")
-        stages_out.append({"exponent": expo, "hard": hard, "status": status, "iterations": int(st.get("iter_count", 0)),
-                           "time": dt})
-        z0 = np.array(sol["x"]).ravel()
-        lam_x = np.array(sol["lam_x"]).ravel()
-        lam_g = np.array(sol["lam_g"]).ravel()
-        if time.perf_counter() - t_start > opt.time_limit:
-            status = status + " (time limit)"
-            break
-    converged = status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
-    res = extract(model, data, win, nlp, z0, args, Pm, lbg, ubg)
+            data, (z, _, _, _, nlp, args, Pm, lbg, ubg, f) = parts[-1]
+    solve_time = time.perf_counter() - t_start - build_time
+    res = extract(model, data, win, nlp, z, args, Pm, lbg, ubg)
     stats = res.stats
     stats.converged = converged
     stats.status = status
-    stats.iterations = iters
+    stats.iterations = run.iterations
     stats.build_time = build_time
     stats.solve_time = solve_time
-    stats.cost = float(sol["f"])
-    stats.stages = stages_out
+    stats.cost = f
+    stats.stages = run.stages
     stats.peak_memory_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     stats.checks = run_checks(model, data, res)
     tol_ok = stats.max_constraint_violation.value <= 1e-2
@@ -149,14 +303,64 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2) -> TORe
     return res
 
 
-def _stage_solver(nlp, structure, K, ipopt_opts, tag):
-    key = (tag, structure, K, tuple(sorted(ipopt_opts.items())))
-    if key not in _SOLVERS:
-        o = dict(ipopt_opts)
-        o["max_iter"] = min(int(o["max_iter"]), GUIDE_STAGE_MAX_ITER)
-        o["acceptable_iter"] = 3
-        _SOLVERS[key] = nlp.solver(o)
-    return _SOLVERS[key]
+def get_nlp(wd, structure, K: int, threads: int = 2) -> AssembledNLP:
+    nkey = (structure, K)
+    if nkey not in _NLPS:
+        _NLPS[nkey] = AssembledNLP(wd, K, threads=threads)
+    return _NLPS[nkey]
+
+
+def segments(prob: Problem) -> list:
+    """[(t0, t1)] of consecutive subtasks (phase boundaries where the subtask index changes)."""
+    out, t0 = [], 0.0
+    for i, ph in enumerate(prob.phases):
+        last = i == len(prob.phases) - 1
+        if last or prob.phases[i + 1].subtask_index != ph.subtask_index:
+            out.append((t0, ph.end))
+            t0 = ph.end
+    return out
+
+
+def segment_problem(prob: Problem, t0: float, t1: float, x_init, poses: dict) -> Problem:
+    """The sub-problem on [t0, t1], shifted to start at 0, starting at rest in ``x_init`` with the
+    objects at ``poses`` (p, rpy)."""
+    from dataclasses import replace
+
+    from .model import rot_to_quat_xyzw
+
+    phases = [replace(ph, start=ph.start - t0, end=ph.end - t0) for ph in prob.phases
+              if ph.start >= t0 - 1e-9 and ph.end <= t1 + 1e-9]
+    subs = {ph.subtask_index for ph in phases}
+    kfs = [replace(kf, time=prob.keyframe_time(kf) - t0) for kf in prob.keyframes if kf.subtask_index in subs]
+    goals = []
+    for g in prob.placement_goals:
+        tg = prob.duration if g.time is None else g.time
+        if t0 + 1e-9 < tg <= t1 + 1e-9:
+            goals.append(replace(g, time=tg - t0))
+    objs = []
+    for o in prob.objects:
+        pose = poses[o.id]
+        objs.append(replace(o, position=tuple(pose[:3]), quat_xyzw=tuple(rot_to_quat_xyzw(rpy_to_rot(pose[3:])))))
+    return Problem(objects=objs, keyframes=kfs, phases=phases, initial_configuration=tuple(x_init),
+                   placement_goals=goals, options=prob.options, name=f"{prob.name}[{t0:.1f}-{t1:.1f}]")
+
+
+def _stitch(win: Window, data: ProblemData, parts) -> tuple:
+    """Concatenate segment solutions (primal and multipliers) on the whole-horizon grid."""
+    nw, ng = win.W.n, win.G.n
+    zs, lxs, lgs = [], [], []
+    for i, (sd, res) in enumerate(parts):
+        K = sd.grid.K
+        n = K if i == len(parts) - 1 else K - 1  # a segment's end knot is the next one's first knot
+        zs.append(res[0].reshape(K + 1, nw)[:n])
+        lxs.append(res[1].reshape(K + 1, nw)[:n])
+        lgs.append(res[2].reshape(K, ng)[:n])
+    Z = np.vstack(zs + [np.zeros((1, nw))])
+    LX = np.vstack(lxs + [np.zeros((1, nw))])
+    LG = np.vstack(lgs)
+    if Z.shape[0] != data.grid.K + 1:
+        raise RuntimeError(f"stitched {Z.shape[0] - 1} knots, the whole horizon has {data.grid.K}")
+    return Z.ravel(), (LX.ravel(), LG.ravel())
 
 
 def _vec(A: np.ndarray) -> np.ndarray:

@@ -1,0 +1,57 @@
+"""Measured contact forces per robot limb, read from MuJoCo's contact solver.
+
+Why: the executor logs and plots what physics really applied at the feet and hands next to what
+the plan asked for. A limb's force is the sum over active contacts between its geoms (feet: all
+geoms of the ankle-roll link; hands: the wrist-yaw link incl. the hand collision box) and anything
+that is not the robot, expressed in the world frame as the force ON the robot.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .robot_model import FOOT_BODIES, HAND_BODIES, PELVIS_BODY
+
+LIMB_BODIES = {"left_foot": FOOT_BODIES["left"], "right_foot": FOOT_BODIES["right"],
+               "left_hand": HAND_BODIES["left"], "right_hand": HAND_BODIES["right"]}  # fmt: skip
+
+
+class LimbForceMeter:
+    """Sums contact forces on the G1's feet and hands from ``data.contact``."""
+
+    def __init__(self, model: mujoco.MjModel):
+        self.model = model
+        pelvis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, PELVIS_BODY)
+        self.robot_bodies = {b for b in range(model.nbody) if model.body_rootid[b] == model.body_rootid[pelvis]}
+        self.geom_limb: dict[int, str] = {}
+        for limb, body in LIMB_BODIES.items():
+            bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
+            for g in range(model.body_geomadr[bid], model.body_geomadr[bid] + model.body_geomnum[bid]):
+                self.geom_limb[g] = limb
+        self._f6 = np.zeros(6)
+
+    def measure(self, data: mujoco.MjData) -> dict[str, np.ndarray]:
+        """limb -> world force (3,) applied on the robot by its contacts (zeros when none)."""
+        m = self.model
+        out = {limb: np.zeros(3) for limb in LIMB_BODIES}
+        for i in range(data.ncon):
+            c = data.contact[i]
+            g1, g2 = int(c.geom[0]), int(c.geom[1])
+            l1, l2 = self.geom_limb.get(g1), self.geom_limb.get(g2)
+            if (l1 is None) == (l2 is None):
+                continue  # not a limb contact, or limb-limb
+            other = g2 if l1 is not None else g1
+            if m.geom_bodyid[other] in self.robot_bodies:
+                continue  # self-contact
+            mujoco.mj_contactForce(m, data, i, self._f6)
+            frame = np.asarray(c.frame).reshape(3, 3)  # rows: normal (from geom[0] to geom[1]), tangents
+            f_world = frame.T @ self._f6[:3]  # force on geom[1] from geom[0]... sign fixed below
+            # mj_contactForce gives the force that geom[0] exerts on geom[1] along +normal reversed:
+            # the contact normal points from geom[0] to geom[1] and the normal force pushes them apart,
+            # so geom[1] receives +f_world and geom[0] receives -f_world.
+            if l1 is not None:
+                out[l1] -= f_world
+            else:
+                out[l2] += f_world
+        return out

@@ -1,0 +1,476 @@
+"""Whole-body controller: task-space inverse dynamics QP that tracks a whole-body trajectory.
+
+Why: the plan must be carried out by joint torques under physics (friction contacts, no weld, no
+qpos writes), so the controller solves, every physics step (500 Hz at the 2 ms timestep), one QP
+over the G1's floating-base dynamics taken from the MuJoCo model itself:
+
+    variables  x = [tau (29), qdd (35), f (3 per contact point)]
+    minimise   sum_k w_k |A_k qdd - b_k|^2 + w_f |f_limb - f_plan|^2 + small regularisation
+    subject to M qdd + h = S^T tau + J_c^T f          (35 rows: mass matrix qM, bias qfrc_bias - passive)
+               |f_t| <= mu f_n per tangent, 0 <= f_n <= f_max   (linearised friction pyramids)
+               |tau| <= G1 rev 1.0 torque limits
+
+Contacts follow the plan's contact schedule: a foot in contact is 4 sole-corner point forces with
+a 6-D "no acceleration" task (weight 1e3, damped drift); a hand in contact is one point force in
+the friction cone of the touched surface whose reference is the planned force, so the torques
+carry the planned grasp/push forces as feed-forward while physics produces the real contact
+(the hand collision boxes touching the object; nothing is welded). Tasks with PD feedback on the
+plan's own kinematics (evaluated with MuJoCo on the planned configurations): CoM, pelvis
+orientation and position, swing-foot pose, hand position and orientation, posture (all joints).
+
+Named simplifications: the foot moment reference is not tracked (only the net planned foot force;
+the QP distributes the corner forces); the CoM acceleration term J_dot v is neglected (site terms
+use mj_jacDot); contact states come from the schedule, not from touch detection. The QP solver is
+DAQP (dual active set, dense), warm started from the previous active set.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import daqp
+import mujoco
+import numpy as np
+
+from .robot_model import (FOOT_BODIES, FOOT_CONTACT_POINTS, FOOT_SITES, G1_JOINT_NAMES, HAND_COLLISION_HALF_SIZE,
+                          HAND_SITES, PELVIS_BODY)
+from .trajectory import FEET, HANDS, Trajectory
+from .world import World
+
+NJ = len(G1_JOINT_NAMES)
+NV = NJ + 6
+_SOLE_CORNERS = FOOT_CONTACT_POINTS - np.array([0.0, 0.0, 0.005])  # sphere centres -> sole (r = 5 mm)
+
+
+class WbcError(RuntimeError):
+    """The controller could not be set up for this model/trajectory."""
+
+
+@dataclass
+class WbcGains:
+    """PD gains (1/s^2, 1/s), task weights and contact model of :class:`WholeBodyController`."""
+
+    com_kp: float = 100.0
+    com_kd: float = 20.0
+    base_kp: float = 100.0  # pelvis orientation and position
+    base_kd: float = 20.0
+    foot_kp: float = 400.0
+    foot_kd: float = 40.0
+    contact_kd: float = 20.0  # damping of a contact foot's drift velocity
+    hand_kp: float = 150.0
+    hand_kd: float = 25.0
+    posture_kp: float = 100.0
+    posture_kd: float = 20.0
+    w_contact: float = 1e3
+    w_com: float = 100.0
+    w_base_ori: float = 50.0
+    w_base_pos: float = 5.0
+    w_swing: float = 200.0
+    w_hand: float = 30.0
+    w_hand_ori: float = 2.0
+    w_posture: float = 1.0
+    w_force: float = 1e-3  # per N^2, towards the planned contact force
+    reg_qdd: float = 1e-5
+    reg_force: float = 1e-5
+    reg_tau: float = 1e-6
+    mu_foot: float = 0.7  # friction coefficients the QP assumes (below the sim's, for margin)
+    f_max: float = 1500.0  # N per point
+    hold_recentre_time: float = 1.0  # s: after the plan ends, the CoM moves over the sole centres
+    com_margin: float = 0.03  # m: CoM reference kept this far inside the contact soles' bounding box
+    hand_offset_ramp: float = 0.3  # s, see WholeBodyController._hand_offsets
+    hand_squeeze: float = -0.005  # m: hand target this far inside the surface (negative = into the object)
+    hand_clearance: float = 0.0  # m, extra distance from the surface while approaching a contact
+    hand_engage_error: float = 0.06  # m: planned hand force is applied once the hand got this close
+
+
+@dataclass
+class _Refs:
+    """Task references on the trajectory grid, from MuJoCo kinematics of the planned states."""
+
+    com: np.ndarray
+    com_v: np.ndarray
+    com_a: np.ndarray
+    base_p: np.ndarray
+    base_v: np.ndarray
+    base_a: np.ndarray
+    base_R: np.ndarray
+    base_w: np.ndarray
+    base_alpha: np.ndarray
+    site_p: dict = field(default_factory=dict)  # limb -> (N,3)
+    site_R: dict = field(default_factory=dict)  # limb -> (N,3,3)
+    site_v: dict = field(default_factory=dict)  # limb -> (N,6) linear, angular (world)
+    site_a: dict = field(default_factory=dict)  # limb -> (N,6)
+    qdd: np.ndarray | None = None
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def _rot_error(R_des: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """World-frame rotation vector (small-angle) that takes R to R_des."""
+    E = R_des @ R.T
+    return 0.5 * np.array([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]])
+
+
+@dataclass
+class WbcStatus:
+    """What the last control step saw (for feedback, logs and tests)."""
+
+    t_ref: float = 0.0
+    base_position_error: float = 0.0
+    joint_error_rms: float = 0.0
+    joint_error_max: float = 0.0
+    qp_ok: bool = True
+    qp_failures: int = 0
+    qp_iterations: int = 0
+    contacts: tuple = ()
+
+
+class WholeBodyController:
+    """TSID QP tracking ``traj`` on the robot of ``world``; a TorqueController for Simulation."""
+
+    def __init__(self, world: World, traj: Trajectory, gains: WbcGains | None = None):
+        self.world, self.traj, self.g = world, traj, gains or WbcGains()
+        m = self.model = world.model
+        self.pelvis = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, PELVIS_BODY)
+        self.bdof = int(m.jnt_dofadr[m.body_jntadr[self.pelvis]])
+        self.bq = int(m.jnt_qposadr[m.body_jntadr[self.pelvis]])
+        if not np.array_equal(world.joint_dof_adr, np.arange(self.bdof + 6, self.bdof + NV)):
+            raise WbcError("the G1's joints must follow its free joint contiguously in qvel")
+        self.dofs = slice(self.bdof, self.bdof + NV)
+        self.sites = {"left_foot": FOOT_SITES["left"], "right_foot": FOOT_SITES["right"],
+                      "left_hand": HAND_SITES["left"], "right_hand": HAND_SITES["right"]}  # fmt: skip
+        self.site_id = {l: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) for l, s in self.sites.items()}
+        if min(self.site_id.values()) < 0:
+            raise WbcError("foot/hand sites missing from the model")
+        foot_body = {"left_foot": FOOT_BODIES["left"], "right_foot": FOOT_BODIES["right"]}
+        self.foot_body = {l: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b) for l, b in foot_body.items()}
+        self.limits = np.asarray(world.torque_limits, float)
+        self.hand_geom = {l: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"{l}_collision") for l in HANDS}
+        self._jp = np.zeros((3, m.nv))
+        self._jr = np.zeros((3, m.nv))
+        self._jdp = np.zeros((3, m.nv))
+        self._jdr = np.zeros((3, m.nv))
+        self._M = np.zeros((m.nv, m.nv))
+        self._scratch = mujoco.MjData(m)
+        self.refs = self._precompute_refs()
+        self.t0 = 0.0
+        self.status = WbcStatus()
+        self.last_forces: dict[str, np.ndarray] = {}
+        self._last_tau = np.zeros(NJ)
+        self._engaged: dict = {}
+
+    # ---------------------------------------------------------------------------- references
+    def _precompute_refs(self) -> _Refs:
+        tr, m, d = self.traj, self.model, self._scratch
+        n = tr.n
+        com, com_v = np.zeros((n, 3)), np.zeros((n, 3))
+        base_R, base_w = np.zeros((n, 3, 3)), np.zeros((n, 3))
+        sp = {l: np.zeros((n, 3)) for l in self.sites}
+        sR = {l: np.zeros((n, 3, 3)) for l in self.sites}
+        sv = {l: np.zeros((n, 6)) for l in self.sites}
+        jcom = np.zeros((3, m.nv))
+        d.qpos[:] = self.world.stand_qpos
+        for i in range(n):
+            d.qpos[self.bq : self.bq + 7 + NJ] = tr.qpos(i)
+            d.qvel[:] = 0.0
+            d.qvel[self.dofs] = tr.qvel(i)
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            com[i] = d.subtree_com[self.pelvis]
+            mujoco.mj_jacSubtreeCom(m, d, jcom, self.pelvis)
+            com_v[i] = jcom @ d.qvel
+            base_R[i] = d.xmat[self.pelvis].reshape(3, 3)
+            base_w[i] = base_R[i] @ tr.qvel(i)[3:6]
+            for l, sid in self.site_id.items():
+                sp[l][i] = d.site_xpos[sid]
+                sR[l][i] = d.site_xmat[sid].reshape(3, 3)
+                mujoco.mj_jacSite(m, d, self._jp, self._jr, sid)
+                sv[l][i, :3] = self._jp @ d.qvel
+                sv[l][i, 3:] = self._jr @ d.qvel
+        t = tr.t
+        for limb in HANDS:  # the plan's hand is a point on the surface; the sim's hand is a box
+            sp[limb] = sp[limb] + self._hand_offsets(limb, sR[limb])
+            sv[limb][:, :3] = np.gradient(sp[limb], t, axis=0)
+        grad = lambda a: np.gradient(a, t, axis=0)  # noqa: E731
+        return _Refs(com=com, com_v=com_v, com_a=grad(com_v), base_p=tr.base_pos.copy(), base_v=tr.base_linvel.copy(),
+                     base_a=grad(tr.base_linvel), base_R=base_R, base_w=base_w, base_alpha=grad(base_w),
+                     site_p=sp, site_R=sR, site_v=sv, site_a={l: grad(v) for l, v in sv.items()},
+                     qdd=grad(tr.qd))  # fmt: skip
+
+    def _hand_offsets(self, limb: str, R_hand: np.ndarray) -> np.ndarray:
+        """(N,3) shift of the hand target along the contact normal by the hand box's support distance.
+
+        Why: the TO models a hand as a point on the object's surface, the sim's hand is a collision
+        box around that point, so tracking the point would push the box 3-5 cm into the object.
+        The shift is ramped in over ``hand_offset_ramp`` s before each contact and out after it.
+        """
+        tr, g = self.traj, self.g
+        half = np.asarray(HAND_COLLISION_HALF_SIZE, float)
+        off = np.zeros((tr.n, 3))
+        for ph in tr.phases:
+            c = ph.contacts.get(limb)
+            if c is None:
+                continue
+            n = np.asarray(c.normal, float) / max(np.linalg.norm(c.normal), 1e-9)
+            w = np.clip(1.0 - np.maximum(ph.start - tr.t, tr.t - ph.end) / g.hand_offset_ramp, 0.0, 1.0)
+            # approach from outside: extra clearance until shortly before contact, gone just after it
+            clear = g.hand_clearance * np.clip((ph.start + 0.1 - tr.t) / 0.2, 0.0, 1.0)
+            for i in np.nonzero(w > 0)[0]:
+                d = float(np.abs(R_hand[i].T @ n) @ half) + g.hand_squeeze + clear[i]
+                cand = w[i] * d * n
+                if np.linalg.norm(cand) > np.linalg.norm(off[i]):
+                    off[i] = cand
+        return off
+
+    def _touching(self, data: mujoco.MjData, limb: str, object_id: str) -> bool:
+        """True when the hand's collision box has a MuJoCo contact with a geom of ``object_id``."""
+        hg = self.hand_geom.get(limb, -1)
+        ob = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, object_id)
+        if hg < 0 or ob < 0:
+            return False
+        for k in range(data.ncon):
+            g1, g2 = data.contact[k].geom
+            other = g2 if g1 == hg else g1 if g2 == hg else -1
+            if other >= 0 and self.model.body_rootid[self.model.geom_bodyid[other]] == self.model.body_rootid[ob]:
+                return True
+        return False
+
+    def _support_box(self, data: mujoco.MjData, feet: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Contact sole corners as a box (lo, hi) in the pelvis heading frame R (2x2), shrunk by the margin."""
+        if not feet:
+            return None
+        Rp = data.xmat[self.pelvis].reshape(3, 3)
+        yaw = np.arctan2(Rp[1, 0], Rp[0, 0])
+        c, s_ = np.cos(yaw), np.sin(yaw)
+        H = np.array([[c, s_], [-s_, c]])  # world xy -> heading frame
+        pts = []
+        for lf in feet:
+            b = self.foot_body[lf]
+            pts.extend((data.xpos[b] + data.xmat[b].reshape(3, 3) @ p)[:2] for p in _SOLE_CORNERS)
+        loc = np.array(pts) @ H.T
+        lo, hi = loc.min(axis=0) + self.g.com_margin, loc.max(axis=0) - self.g.com_margin
+        return lo, np.maximum(hi, lo), H
+
+    def reference_qpos(self, t: float) -> np.ndarray:
+        """Planned 36-D robot configuration at trajectory time t (linear interpolation)."""
+        i, s = self.traj.index_at(t)
+        a, b = self.traj.qpos(i), self.traj.qpos(i + 1)
+        q = a + s * (b - a)
+        q[3:7] /= np.linalg.norm(q[3:7])
+        return q
+
+    # ---------------------------------------------------------------------------- control
+    def reset(self, data: mujoco.MjData) -> None:
+        """Start the trajectory clock now."""
+        self.t0 = float(data.time)
+        self.status = WbcStatus()
+        self._engaged.clear()
+
+    def trajectory_time(self, data: mujoco.MjData) -> float:
+        return float(data.time) - self.t0
+
+    def compute(self, data: mujoco.MjData) -> np.ndarray:
+        """Joint torques (29,) for the current state (after mj_step1: kinematics, qM, bias are current)."""
+        m, g, tr, R_ = self.model, self.g, self.traj, self.refs
+        t = self.trajectory_time(data)
+        i, s = tr.index_at(t)
+        after_end = t >= tr.duration
+
+        def lerp(a):
+            return a[i] + s * (a[i + 1] - a[i])
+
+        def dlerp(a):  # velocities/accelerations: zero once the plan has ended (hold)
+            return np.zeros(a.shape[1:]) if after_end else lerp(a)
+
+        phase = tr.phase_at(min(t, tr.duration))
+        contacts = phase.contacts if phase is not None else {f: None for f in FEET}
+        dofs = self.dofs
+        v = data.qvel[dofs]
+        qj = data.qpos[self.bq + 7 : self.bq + 7 + NJ]
+        vj = v[6:]
+
+        rows_A: list[np.ndarray] = []
+        rows_b: list[np.ndarray] = []
+        rows_w: list[np.ndarray] = []
+
+        def task(A, b, w):
+            rows_A.append(A)
+            rows_b.append(b)
+            rows_w.append(np.full(len(b), w) if np.isscalar(w) else w)
+
+        # --- sites: feet (contact or swing) and hands
+        site_J = {}
+        corner_J = {}
+        for limb, sid in self.site_id.items():
+            mujoco.mj_jacSite(m, data, self._jp, self._jr, sid)
+            J = np.vstack([self._jp[:, dofs], self._jr[:, dofs]])
+            site_J[limb] = J
+            mujoco.mj_jacDot(m, data, self._jdp, self._jdr, data.site_xpos[sid], m.site_bodyid[sid])
+            jdv = np.concatenate([self._jdp[:, dofs] @ v, self._jdr[:, dofs] @ v])
+            vel = J @ v
+            p, Rm = data.site_xpos[sid], data.site_xmat[sid].reshape(3, 3)
+            if limb in FEET:
+                if limb in contacts:
+                    task(J, -jdv - g.contact_kd * vel, g.w_contact)
+                    # sole corner point Jacobians (forces act there)
+                    bid = self.foot_body[limb]
+                    Rb, pb = data.xmat[bid].reshape(3, 3), data.xpos[bid]
+                    cj = []
+                    for c in _SOLE_CORNERS:
+                        r = pb + Rb @ c - p
+                        cj.append(J[:3] - _skew(r) @ J[3:])
+                    corner_J[limb] = cj
+                else:
+                    e = np.concatenate([lerp(R_.site_p[limb]) - p, _rot_error(R_.site_R[limb][i if s < 0.5 else i + 1], Rm)])
+                    b = dlerp(R_.site_a[limb]) + g.foot_kp * e + g.foot_kd * (dlerp(R_.site_v[limb]) - vel) - jdv
+                    task(J, b, g.w_swing)
+            else:
+                e = lerp(R_.site_p[limb]) - p
+                b = dlerp(R_.site_a[limb])[:3] + g.hand_kp * e + g.hand_kd * (dlerp(R_.site_v[limb])[:3] - vel[:3]) - jdv[:3]
+                task(J[:3], b, g.w_hand)
+                eo = _rot_error(R_.site_R[limb][i if s < 0.5 else i + 1], Rm)
+                bo = g.hand_kp * eo + g.hand_kd * (dlerp(R_.site_v[limb])[3:] - vel[3:]) - jdv[3:]
+                task(J[3:], bo, g.w_hand_ori)
+
+        # --- CoM
+        mujoco.mj_jacSubtreeCom(m, data, self._jp, self.pelvis)
+        Jc = self._jp[:, dofs].copy()
+        com = data.subtree_com[self.pelvis]
+        com_ref = lerp(R_.com)
+        feet = [lf for lf in FEET if lf in corner_J]
+        box = self._support_box(data, feet) if g.com_margin > 0 else None
+        if box is not None:  # keep the CoM reference a margin inside the support (marginal plans tip over)
+            lo, hi, Hh = box
+            loc = Hh @ com_ref[:2]
+            clamped = np.clip(loc, lo, hi)
+            if np.any(clamped != loc):
+                com_ref = com_ref.copy()
+                com_ref[:2] = Hh.T @ clamped
+        if after_end and g.hold_recentre_time > 0:  # hold: move the CoM over the middle of the soles
+            if feet:
+                mid = np.mean([data.xpos[self.foot_body[lf]] + data.xmat[self.foot_body[lf]].reshape(3, 3)
+                               @ _SOLE_CORNERS.mean(axis=0) for lf in feet], axis=0)
+                a = min((t - tr.duration) / g.hold_recentre_time, 1.0)
+                com_ref = com_ref.copy()
+                com_ref[:2] += a * (mid[:2] - com_ref[:2])
+        b = dlerp(R_.com_a) + g.com_kp * (com_ref - com) + g.com_kd * (dlerp(R_.com_v) - Jc @ v)
+        task(Jc, b, g.w_com)
+        # --- pelvis orientation and position
+        mujoco.mj_jacBody(m, data, self._jp, self._jr, self.pelvis)
+        Rp = data.xmat[self.pelvis].reshape(3, 3)
+        Jr = self._jr[:, dofs]
+        b = dlerp(R_.base_alpha) + g.base_kp * _rot_error(R_.base_R[i if s < 0.5 else i + 1], Rp) \
+            + g.base_kd * (dlerp(R_.base_w) - Jr @ v)
+        task(Jr, b, g.w_base_ori)
+        Jp = self._jp[:, dofs]
+        pp = data.xpos[self.pelvis]
+        b = dlerp(R_.base_a) + g.base_kp * (lerp(R_.base_p) - pp) + g.base_kd * (dlerp(R_.base_v) - Jp @ v)
+        task(Jp, b, g.w_base_pos)
+        # --- posture
+        q_ref = lerp(tr.q)
+        b = dlerp(R_.qdd) + g.posture_kp * (q_ref - qj) + g.posture_kd * (dlerp(tr.qd) - vj)
+        task(np.eye(NV)[6:], b, g.w_posture)
+
+        A = np.vstack(rows_A)
+        bb = np.concatenate(rows_b)
+        w = np.concatenate(rows_w)
+        Aw = A * w[:, None]
+        Hqq = A.T @ Aw + g.reg_qdd * np.eye(NV)
+        gq = -Aw.T @ bb
+
+        # --- contact force variables and their constraints
+        points: list[tuple[str, np.ndarray, np.ndarray, float, float]] = []  # (limb, J(3xNV), normal, mu, fmin)
+        for limb in FEET:
+            if limb in corner_J:
+                n = contacts[limb].normal if contacts[limb] is not None else np.array([0.0, 0.0, 1.0])
+                for cj in corner_J[limb]:
+                    points.append((limb, cj, n, g.mu_foot, 0.0))
+        hand_points = [(limb, site_J[limb][:3]) for limb in HANDS if limb in contacts and contacts[limb] is not None]
+        nfoot = 3 * len(points)
+        nf = nfoot + 3 * len(hand_points)
+        nx = NJ + NV + nf
+        H = np.zeros((nx, nx))
+        f = np.zeros(nx)
+        H[:NJ, :NJ] = g.reg_tau * np.eye(NJ)
+        H[NJ : NJ + NV, NJ : NJ + NV] = Hqq
+        f[NJ : NJ + NV] = gq
+        H[NJ + NV :, NJ + NV :] = g.reg_force * np.eye(nf)
+        # force tracking: per foot, the sum of its corner forces -> planned force
+        by_limb: dict[str, list[int]] = {}
+        for k, (limb, *_r) in enumerate(points):
+            by_limb.setdefault(limb, []).append(k)
+        for k, (limb, _j) in enumerate(hand_points):
+            by_limb[limb] = [len(points) + k]
+        for limb, ks in by_limb.items():
+            if limb in HANDS:
+                continue
+            f_ref = lerp(tr.forces[limb]) if limb in tr.forces else np.zeros(3)
+            Sel = np.zeros((3, nf))
+            for k in ks:
+                Sel[:, 3 * k : 3 * k + 3] = np.eye(3)
+            H[NJ + NV :, NJ + NV :] += g.w_force * Sel.T @ Sel
+            f[NJ + NV :] += -g.w_force * Sel.T @ f_ref
+
+        # dynamics: M qdd - S^T tau - Jc^T f = -h
+        mujoco.mj_fullM(m, data, self._M)
+        Mr = self._M[dofs, dofs]
+        h = data.qfrc_bias[dofs] - data.qfrc_passive[dofs]
+        Aeq = np.zeros((NV, nx))
+        Aeq[6:, :NJ] = -np.eye(NJ)
+        Aeq[:, NJ : NJ + NV] = Mr
+        for k, cj in enumerate([p[1] for p in points] + [hp[1] for hp in hand_points]):
+            Aeq[:, NJ + NV + 3 * k : NJ + NV + 3 * k + 3] = -cj.T
+        beq = -h
+        # hands: the planned force (on the robot) is imposed as feed-forward, not chosen by the QP,
+        # so the QP can never lean on a free object as if it were a support
+        Ahand = np.zeros((3 * len(hand_points), nx))
+        bhand = np.zeros(3 * len(hand_points))
+        for k, (limb, _j) in enumerate(hand_points):
+            c = NJ + NV + nfoot + 3 * k
+            Ahand[3 * k : 3 * k + 3, c : c + 3] = np.eye(3)
+            if self._engaged.get(limb) is not phase:  # latch: hand touches its object, or is at its target
+                close = np.linalg.norm(lerp(R_.site_p[limb]) - data.site_xpos[self.site_id[limb]]) < g.hand_engage_error
+                if close or self._touching(data, limb, contacts[limb].object_id):
+                    self._engaged[limb] = phase
+            if self._engaged.get(limb) is phase and limb in tr.forces:
+                bhand[3 * k : 3 * k + 3] = lerp(tr.forces[limb])
+        # friction pyramids: 4 tangent rows + normal bounds per point
+        Ain = np.zeros((5 * len(points), nx))
+        bu = np.zeros(5 * len(points))
+        bl = np.full(5 * len(points), -1e30)
+        for k, (_l, _cj, n, mu, fmin) in enumerate(points):
+            n = np.asarray(n, float) / max(np.linalg.norm(n), 1e-9)
+            t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+            t1 /= np.linalg.norm(t1)
+            t2 = np.cross(n, t1)
+            c = NJ + NV + 3 * k
+            for r, tv in enumerate((t1, -t1, t2, -t2)):
+                Ain[5 * k + r, c : c + 3] = tv - mu * n
+            Ain[5 * k + 4, c : c + 3] = n
+            bu[5 * k + 4], bl[5 * k + 4] = g.f_max, fmin
+        A_all = np.vstack([Aeq, Ahand, Ain])
+        upper = np.concatenate([self.limits, beq, bhand, bu])
+        lower = np.concatenate([-self.limits, beq, bhand, bl])
+        sense = np.concatenate([np.zeros(NJ), np.full(NV + len(bhand), 5), np.zeros(len(bu))]).astype(np.int32)
+        key = tuple(sorted(by_limb))
+        x, _fval, flag, info = daqp.solve(H, f, A_all, upper, lower, sense)
+        ok = flag >= 1 and np.all(np.isfinite(x))
+        st = self.status
+        st.t_ref, st.qp_ok, st.contacts = t, bool(ok), key
+        if ok:
+            tau = np.clip(x[:NJ], -self.limits, self.limits)
+            self._last_tau = tau
+            self.last_forces = {limb: sum(x[NJ + NV + 3 * k : NJ + NV + 3 * k + 3] for k in ks) for limb, ks in by_limb.items()}
+            st.qp_iterations = int(info.get("iterations", 0)) if isinstance(info, dict) else 0
+        else:
+            st.qp_failures += 1
+            tau = self._last_tau
+        # tracking status
+        ep = float(np.linalg.norm(data.qpos[self.bq : self.bq + 3] - lerp(tr.base_pos)))
+        ej = qj - q_ref
+        st.base_position_error = ep
+        st.joint_error_rms = float(np.sqrt(np.mean(ej**2)))
+        st.joint_error_max = float(np.max(np.abs(ej)))
+        return tau

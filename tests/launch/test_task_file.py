@@ -1,0 +1,43 @@
+"""Task files for `lomanip plan`: the shipped ones load, bad ones say what is wrong."""
+from __future__ import annotations
+
+import pytest
+
+from lomanip_launch.task_file import TaskFileError, load_task, task_from_dict
+
+
+@pytest.mark.parametrize("name", ["s1_basket", "s2_trolley"])
+def test_shipped_tasks_load(name):
+    task = load_task(name)
+    assert task.scenario == name
+    assert len(task.prompts) == 3
+    assert [g.object_id for g in task.placement_goals] == ["box"]
+
+
+def test_missing_file_lists_shipped_tasks(tmp_path):
+    with pytest.raises(TaskFileError, match="s1_basket, s2_trolley"):
+        load_task(str(tmp_path / "nope.yaml"))
+
+
+@pytest.mark.parametrize("data, match", [
+    ({"scenario": "s1_basket", "prompts": []}, "non-empty list"),
+    ({"scenario": "s1_basket", "prompts": ["pick up the box", " "]}, "non-empty strings"),
+    ({"prompts": ["a"]}, "'scenario'"),
+    ({"scenario": "s1_basket", "prompts": ["a"], "placement_goals": [{"object": "box", "position": [1, 2]}]},
+     r"\[x, y, z\]"),
+    ({"scenario": "s1_basket", "prompts": ["a"], "placement_goals": [{"object": "box", "position": [1, 2, "nan"]}]},
+     "finite"),
+    ({"scenario": "s1_basket", "prompts": ["a"], "options": {"max_iterations": "many"}}, "must be int"),
+    ({"scenario": "s1_basket", "prompts": ["a"], "options": {"warp_speed": True}}, "unknown option"),
+    ({"scenario": "s1_basket", "prompts": ["a"], "colour": "red"}, "unknown field"),
+])
+def test_bad_tasks_are_rejected_with_a_reason(data, match):
+    with pytest.raises(TaskFileError, match=match):
+        task_from_dict(data)
+
+
+def test_yaml_syntax_error_names_the_file(tmp_path):
+    path = tmp_path / "broken.yaml"
+    path.write_text("scenario: [s1\n")
+    with pytest.raises(TaskFileError, match="broken.yaml"):
+        load_task(str(path))

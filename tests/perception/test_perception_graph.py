@@ -1,0 +1,113 @@
+"""The perception node as a real process beside the sim node: S1/S2 prompt lists and bad inputs."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.graph.helpers import ros_process, wait_for
+
+pytestmark = pytest.mark.graph
+
+S1 = ["pick up the box", "place the box next to the shelf", "step on the box and grab the basket"]
+S2 = ["pick up the box from the table", "place the box on the trolley", "push the trolley forward"]
+EXPECTED = {  # subtask -> {limb: object id}
+    "s1_basket": [{"left_hand": "box", "right_hand": "box"}, {"left_hand": "box", "right_hand": "box"},
+                  {"left_foot": "box", "right_foot": "box", "left_hand": "basket", "right_hand": "basket"}],
+    "s2_trolley": [{"left_hand": "box", "right_hand": "box"}, {"left_hand": "box", "right_hand": "box"},
+                   {"left_hand": "trolley", "right_hand": "trolley"}],
+}
+
+
+@pytest.fixture(scope="module")
+def client():
+    import rclpy
+
+    rclpy.init()
+    node = rclpy.create_node("perception_test_client")
+    yield node
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def _call(node, client, request, timeout=120.0):
+    import rclpy
+
+    future = client.call_async(request)
+    rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
+    assert future.done(), "extract_contacts did not answer"
+    return future.result()
+
+
+@pytest.mark.parametrize("scenario,prompts", [("s1_basket", S1), ("s2_trolley", S2)])
+def test_extract_contacts_with_sim(scenario, prompts, client, tmp_path):
+    from lomanip_msgs.msg import ContactSet, ErrorCode
+    from lomanip_msgs.srv import ExtractContacts
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from visualization_msgs.msg import MarkerArray
+
+    sim_log, perc_log = tmp_path / "sim.log", tmp_path / "perception.log"
+    with ros_process(["-m", "lomanip_sim.sim_node", "--ros-args", "-p", f"scenario:={scenario}",
+                      "-p", "camera_rate:=2.0"], sim_log) as sim, \
+            ros_process(["-m", "lomanip_perception.perception_node"], perc_log) as perc:  # fmt: skip
+        cli = client.create_client(ExtractContacts, "/lomanip/perception/extract_contacts")
+        wait_for(lambda: cli.service_is_ready(), 60, "extract_contacts service", proc=perc, log_path=perc_log)
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        got = {}
+        client.create_subscription(ContactSet, "/lomanip/contacts", lambda m: got.__setitem__("contacts", m), latched)
+        client.create_subscription(MarkerArray, "/lomanip/perception/markers", lambda m: got.__setitem__("markers", m), latched)
+
+        res = _call(client, cli, ExtractContacts.Request(prompts=prompts))
+        assert res.error_code.val == ErrorCode.SUCCESS, res.error_code.message + "\n" + perc_log.read_text()[-2000:]
+        assert len(res.contacts.subtasks) == len(prompts)
+        for sub, expected in zip(res.contacts.subtasks, EXPECTED[scenario]):
+            found = {c.limb: c.object_id for c in sub.contacts if c.object_id != "floor"}
+            assert found == expected, (sub.prompt, found)
+            for c in sub.contacts:
+                p = np.array([c.position.x, c.position.y, c.position.z])
+                assert np.all(np.isfinite(p)) and 0.0 <= c.confidence <= 1.0
+        assert len(res.human_poses) == len(prompts) and all(len(h.keypoints) > 10 for h in res.human_poses)
+        stages = {t.stage for t in res.timings}
+        assert "subtask0/contact_transfer" in stages and "total" in stages
+        import rclpy
+
+        wait_for(lambda: "contacts" in got and "markers" in got, 10, "latched contacts and markers",
+                 spin=lambda: rclpy.spin_once(client, timeout_sec=0.05))  # fmt: skip
+        assert len(got["contacts"].subtasks) == len(prompts) and len(got["markers"].markers) > 3
+
+        if scenario == "s1_basket":
+            _bad_inputs(client, cli, perc)
+        assert sim.poll() is None and perc.poll() is None
+
+
+def _bad_inputs(client, cli, perc):
+    from lomanip_msgs.msg import ErrorCode
+    from lomanip_msgs.srv import ExtractContacts
+
+    res = _call(client, cli, ExtractContacts.Request(prompts=[]))
+    assert res.error_code.val == ErrorCode.INVALID_REQUEST and "empty prompt list" in res.error_code.message
+
+    res = _call(client, cli, ExtractContacts.Request(prompts=["pick up the box", "push the refrigerator"]))
+    assert res.error_code.val == ErrorCode.UNKNOWN_OBJECT
+    assert "subtask 1 'push the refrigerator'" in res.error_code.message and "refrigerator" in res.error_code.message
+
+    # an explicit frame whose depth is all NaN
+    req = ExtractContacts.Request(prompts=["pick up the box"])
+    req.rgb.height, req.rgb.width, req.rgb.encoding, req.rgb.step = 4, 4, "rgb8", 12
+    req.rgb.data = bytes(48)
+    req.depth.height, req.depth.width, req.depth.encoding, req.depth.step = 4, 4, "32FC1", 16
+    req.depth.data = np.full((4, 4), np.nan, np.float32).tobytes()
+    req.camera_info.width, req.camera_info.height = 4, 4
+    req.camera_info.k = [2.0, 0.0, 2.0, 0.0, 2.0, 2.0, 0.0, 0.0, 1.0]
+    req.camera_pose.orientation.w = 1.0
+    res = _call(client, cli, req)
+    assert res.error_code.val == ErrorCode.INVALID_REQUEST and "NaN" in res.error_code.message
+
+    # finite depth but the box is not in view: empty mask, named by subtask
+    req.depth.data = np.full((4, 4), 50.0, np.float32).tobytes()
+    res = _call(client, cli, req)
+    assert res.error_code.val == ErrorCode.CONTACT_TRANSFER_FAILED
+    assert "subtask 0 'pick up the box'" in res.error_code.message
+
+    # still serving
+    res = _call(client, cli, ExtractContacts.Request(prompts=["pick up the box"]))
+    assert res.error_code.val == ErrorCode.SUCCESS and perc.poll() is None

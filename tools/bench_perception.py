@@ -1,0 +1,268 @@
+#!/usr/bin/env python3
+"""Contact-transfer benchmark on synthetic demonstrations (issue 4; paper Sec. III-A2 and V-B).
+
+For each object class of S1/S2 (box, basket, shelf, table, trolley) it generates N synthetic
+demonstrations (a person doing a subtask on another instance of the class, random viewpoint,
+1024 x 1024, camera unknown to the pipeline) and transfers their contacts onto the simulated
+scene's object, for every corruption setting of the stand-ins:
+
+  * matcher outlier rate (incl. left/right flips) 0, 20, 40, 60 % at 10 % depth scale error;
+  * depth scale error 0, 10, 20 % at 40 % outliers (``--grid full``: the whole 4 x 3 grid);
+
+with the geometry-aware transfer (similarity SVD, the default; rigid SVD, as in the paper, on the
+40 %-outlier settings) and the geometry-unaware ablation.
+Error of a contact = distance to the ground truth (the demo's true contact, in the demo object's
+canonical coordinates, placed on the scene object), after projection to the object surface.
+
+Prints the sweep table (median and p90 in cm, per method) and the per-class table at the
+acceptance point; writes results.json, per-contact errors (errors.csv), a plot of error vs outlier
+rate and sample images (R_g with the pose's contact keypoints | R_s with the transferred and true
+contacts) under runs/bench_perception/<timestamp>/. Runtime figures are per subtask on this
+machine (2 shared cores: expect them higher than on an idle machine).
+
+  .venv/bin/python tools/bench_perception.py                # 50 demos per class (about 20-30 min)
+  .venv/bin/python tools/bench_perception.py --demos 5      # quick look
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+import time
+from dataclasses import replace
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+for pkg in ("src/lomanip_sim", "src/lomanip_perception"):
+    sys.path.insert(0, str(ROOT / pkg))
+
+import cv2  # noqa: E402
+
+from lomanip_perception.config import build_from_config, load_config  # noqa: E402
+from lomanip_perception.evaluation import contact_errors, sim_scene  # noqa: E402
+from lomanip_perception.pipeline import PerceptionPipeline  # noqa: E402
+from lomanip_perception.prompts import parse_subtask  # noqa: E402
+from lomanip_perception.registry import build_models  # noqa: E402
+
+#: class -> [(scenario, prompt)]; a demo of class C is scored on its contacts with the C object
+CLASS_TASKS = {
+    "box": [("s1_basket", "pick up the box"), ("s1_basket", "place the box next to the shelf"),
+            ("s1_basket", "step on the box"), ("s2_trolley", "pick up the box from the table"),
+            ("s2_trolley", "place the box on the trolley")],
+    "basket": [("s1_basket", "step on the box and grab the basket"), ("s1_basket", "grab the basket")],
+    "shelf": [("s1_basket", "push the shelf")],
+    "table": [("s2_trolley", "push the table")],
+    "trolley": [("s2_trolley", "push the trolley forward"), ("s2_trolley", "push the trolley")],
+}
+SCENE_YAWS = {"s1_basket": [0.0, 0.6, 1.2], "s2_trolley": [0.0, 0.6, -1.2]}
+OUTLIERS = [0.0, 0.2, 0.4, 0.6]
+DEPTH_ERRORS = [0.0, 0.1, 0.2]
+ACCEPT = (0.4, 0.1)
+METHODS = ("aware_similarity", "aware_rigid", "unaware")
+
+
+def settings(grid: str) -> list[tuple[float, float]]:
+    if grid == "full":
+        return [(o, d) for d in DEPTH_ERRORS for o in OUTLIERS]
+    cross = [(o, ACCEPT[1]) for o in OUTLIERS] + [(ACCEPT[0], d) for d in DEPTH_ERRORS if d != ACCEPT[1]]
+    return cross
+
+
+def pipelines(cfg: dict, outlier: float, depth_err: float, methods) -> dict[str, PerceptionPipeline]:
+    base_models = dict(cfg["models"])
+    base_models["matcher"] = {"backend": "synthetic", "params": {**cfg["models"]["matcher"]["params"],
+                                                                 "outlier_rate": outlier}}  # fmt: skip
+    base_models["depth_estimator"] = {"backend": "synthetic", "params": {**cfg["models"]["depth_estimator"]["params"],
+                                                                         "scale_error": depth_err}}  # fmt: skip
+    models = build_models(base_models)
+    _, tcfg, seed = build_from_config(cfg)
+    out = {}
+    for m in methods:
+        t = replace(tcfg, method="geometry_unaware" if m == "unaware" else "geometry_aware",
+                    similarity=(m != "aware_rigid"))  # fmt: skip
+        out[m] = PerceptionPipeline(models, t, seed)
+    return out
+
+
+def stats(errs: list[float]) -> dict:
+    a = np.asarray(errs, float)
+    if a.size == 0:
+        return {"n": 0, "median_cm": float("nan"), "p90_cm": float("nan")}
+    return {"n": int(a.size), "median_cm": float(np.median(a) * 100), "p90_cm": float(np.percentile(a, 90) * 100)}
+
+
+def draw_sample(path: Path, demo, pose_uv: dict, scene, results: dict, truths: dict) -> None:
+    """R_g with the estimated contact keypoints | R_s with transferred (aware: green, unaware: red)
+    and true (white ring) contacts."""
+    left = np.ascontiguousarray(demo.rgb[..., ::-1])
+    for uv in pose_uv.values():
+        cv2.circle(left, (int(uv[0]), int(uv[1])), 14, (0, 255, 255), 4)
+    left = cv2.resize(left, (480, 480), interpolation=cv2.INTER_AREA)
+    img = np.ascontiguousarray(scene.image.rgb[..., ::-1]).copy()
+    cam, pose = scene.image.camera, scene.image.camera_pose
+    def px(p):
+        u, v = cam.project(pose.inverse_apply(p))[0]
+        return int(round(u)), int(round(v))
+    for p in truths.values():
+        cv2.circle(img, px(p), 7, (255, 255, 255), 2)
+    colours = {"aware_similarity": (0, 200, 0), "unaware": (0, 0, 230)}
+    for m, pts in results.items():
+        for p in pts.values():
+            cv2.circle(img, px(p), 4, colours.get(m, (200, 200, 0)), -1)
+    scale = 480 / img.shape[0]
+    img = cv2.resize(img, (int(img.shape[1] * scale), 480), interpolation=cv2.INTER_AREA)
+    cv2.imwrite(str(path), np.hstack([left, img]))
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--demos", type=int, default=50, help="demonstrations per object class")
+    ap.add_argument("--grid", choices=["cross", "full"], default="cross")
+    ap.add_argument("--classes", default=",".join(CLASS_TASKS))
+    ap.add_argument("--samples", type=int, default=2, help="sample images per class")
+    ap.add_argument("--out", default=str(ROOT / "runs" / "bench_perception" / datetime.now().strftime("%Y%m%d-%H%M%S")))
+    args = ap.parse_args()
+    out = Path(args.out)
+    (out / "samples").mkdir(parents=True, exist_ok=True)
+    cfg = load_config()
+    grid = settings(args.grid)
+    classes = [c.strip() for c in args.classes.split(",") if c.strip()]
+    print(f"bench_perception: {args.demos} synthetic demos x {len(classes)} classes, {len(grid)} corruption settings, "
+          f"methods {', '.join(METHODS)} (synthetic stand-ins, not the paper's models); output {out}", flush=True)
+    t0 = time.perf_counter()
+    scenes = {(s, y): sim_scene(s, {"box_yaw": y}) for s, ys in SCENE_YAWS.items() for y in ys}
+    print(f"  rendered {len(scenes)} scene frames in {time.perf_counter() - t0:.1f} s", flush=True)
+    pipes = {g: pipelines(cfg, g[0], g[1], METHODS if g[0] == ACCEPT[0] else ("aware_similarity", "unaware")) for g in grid}
+    gen_pipe = next(iter(pipes[grid[0]].values()))
+    rows = []  # per contact
+    runtime = []  # per subtask, aware similarity at the acceptance point
+    failures = []
+    for cls in classes:
+        n_samples = 0
+        for i in range(args.demos):
+            scen, prompt = CLASS_TASKS[cls][i % len(CLASS_TASKS[cls])]
+            ys = SCENE_YAWS[scen]
+            scene = scenes[(scen, ys[(i // len(CLASS_TASKS[cls])) % len(ys)])]
+            st = parse_subtask(0, prompt, scene.classes())
+            tg = time.perf_counter()
+            demo = gen_pipe.generate(st, scene, seed=10_000 * (1 + list(CLASS_TASKS).index(cls)) + i)
+            t_gen = time.perf_counter() - tg
+            ids = {o.id for o in scene.objects if o.object_class == cls}
+            for g in grid:
+                sample_pts, truths = {}, {}
+                for m, pipe in pipes[g].items():
+                    try:
+                        res = pipe.run_subtask(st, scene, demo=demo)
+                    except Exception as exc:  # a failed transfer counts, it is not skipped silently
+                        failures.append({"class": cls, "demo": i, "prompt": prompt, "setting": g, "method": m,
+                                         "error": f"{type(exc).__name__}: {exc}"})  # fmt: skip
+                        continue
+                    if m == "aware_similarity" and g == ACCEPT:
+                        runtime.append({"transfer_s": res.timings["contact_transfer"],
+                                        "perception_s": sum(v for k, v in res.timings.items() if k != "image_generation"),
+                                        "generation_s": t_gen})  # fmt: skip
+                    for e in contact_errors(res, demo, scene):
+                        if e.object_id not in ids:
+                            continue
+                        rows.append({"class": cls, "demo": i, "prompt": prompt, "outlier": g[0], "depth_err": g[1],
+                                     "method": m, "limb": e.limb, "error_m": e.error, "error_raw_m": e.error_raw})
+                        if g == ACCEPT and m in ("aware_similarity", "unaware"):
+                            sample_pts.setdefault(m, {})[e.limb] = e.predicted
+                            truths[e.limb] = e.truth
+                if g == ACCEPT and n_samples < args.samples and sample_pts:
+                    gt = demo.ground_truth
+                    uv = {c.limb: gt.camera.project(gt.camera_pose.inverse_apply(c.point))[0] for c in gt.contacts
+                          if c.object_name in gt.names_of_class(cls)}  # fmt: skip
+                    draw_sample(out / "samples" / f"{cls}_{i:02d}.png", demo, uv, scene, sample_pts, truths)
+                    n_samples += 1
+            if (i + 1) % 10 == 0:
+                print(f"  {cls}: {i + 1}/{args.demos} demos ({time.perf_counter() - t0:.0f} s)", flush=True)
+
+    def sel(**kw):
+        return [r["error_m"] for r in rows if all(r[k] == v for k, v in kw.items())]
+
+    table = []
+    for g in grid:
+        for m in pipes[g]:
+            table.append({"outlier": g[0], "depth_err": g[1], "method": m, **stats(sel(outlier=g[0], depth_err=g[1], method=m))})
+    per_class = []
+    for cls in classes:
+        for m in METHODS:
+            per_class.append({"class": cls, "method": m, **stats(sel(outlier=ACCEPT[0], depth_err=ACCEPT[1], method=m,
+                                                                      **{"class": cls}))})  # fmt: skip
+    rt = np.array([r["transfer_s"] for r in runtime]) if runtime else np.zeros(1)
+    pt = np.array([r["perception_s"] for r in runtime]) if runtime else np.zeros(1)
+    gt_ = np.array([r["generation_s"] for r in runtime]) if runtime else np.zeros(1)
+
+    print("\nContact position error (cm), all classes; n = contacts scored")
+    print(f"{'outliers':>8} {'depth err':>9}  {'method':<17} {'n':>5} {'median':>7} {'p90':>7}")
+    for r in table:
+        print(f"{r['outlier']:>8.0%} {r['depth_err']:>9.0%}  {r['method']:<17} {r['n']:>5} {r['median_cm']:>7.2f} {r['p90_cm']:>7.2f}")
+    print(f"\nPer class at {ACCEPT[0]:.0%} outliers, {ACCEPT[1]:.0%} depth scale error (median / p90, cm)")
+    for r in per_class:
+        print(f"  {r['class']:<8} {r['method']:<17} n={r['n']:>4}  {r['median_cm']:6.2f} / {r['p90_cm']:6.2f}")
+    acc = {r["method"]: r for r in table if (r["outlier"], r["depth_err"]) == ACCEPT}
+    ratio_med = acc["unaware"]["median_cm"] / acc["aware_similarity"]["median_cm"]
+    ratio_p90 = acc["unaware"]["p90_cm"] / acc["aware_similarity"]["p90_cm"]
+    ok = acc["aware_similarity"]["median_cm"] <= 3.0 and acc["aware_similarity"]["p90_cm"] <= 6.0
+    print(f"\nAcceptance ({ACCEPT[0]:.0%} outliers, {ACCEPT[1]:.0%} depth scale error): geometry-aware median "
+          f"{acc['aware_similarity']['median_cm']:.2f} cm (<= 3), p90 {acc['aware_similarity']['p90_cm']:.2f} cm (<= 6): "
+          f"{'PASS' if ok else 'FAIL'}; geometry-unaware/aware ratio: median x{ratio_med:.1f}, p90 x{ratio_p90:.1f}")
+    print(f"Similarity vs rigid SVD at the acceptance point: median {acc['aware_similarity']['median_cm']:.2f} vs "
+          f"{acc['aware_rigid']['median_cm']:.2f} cm, p90 {acc['aware_similarity']['p90_cm']:.2f} vs {acc['aware_rigid']['p90_cm']:.2f} cm")
+    print(f"Runtime per subtask (geometry-aware): contact transfer median {np.median(rt):.2f} s, p90 "
+          f"{np.percentile(rt, 90):.2f} s, max {rt.max():.2f} s (< 2 s: {'PASS' if np.median(rt) < 2 else 'FAIL'}); "
+          f"all perception after generation median {np.median(pt):.2f} s; synthetic generation median {np.median(gt_):.2f} s")
+    print(f"Failed transfers: {len(failures)}" + "".join(f"\n  {f}" for f in failures[:10]))
+    print(f"Total {time.perf_counter() - t0:.0f} s")
+
+    with open(out / "errors.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]) if rows else ["class"])
+        w.writeheader()
+        w.writerows(rows)
+    (out / "results.json").write_text(json.dumps({
+        "demos_per_class": args.demos, "classes": classes, "grid": args.grid, "table": table, "per_class": per_class,
+        "acceptance": {"setting": ACCEPT, "pass": bool(ok), "unaware_over_aware_median": ratio_med,
+                       "unaware_over_aware_p90": ratio_p90},
+        "runtime_s": {"transfer_median": float(np.median(rt)), "transfer_p90": float(np.percentile(rt, 90)),
+                      "perception_median": float(np.median(pt)), "generation_median": float(np.median(gt_))},
+        "failures": failures}, indent=1))  # fmt: skip
+    plot(out / "error_vs_outliers.png", table)
+    print(f"Wrote {out}")
+    return 0
+
+
+def plot(path: Path, table: list[dict]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=100)
+    styles = {"aware_similarity": ("tab:green", "geometry-aware (similarity)"),
+              "aware_rigid": ("tab:olive", "geometry-aware (rigid)"), "unaware": ("tab:red", "geometry-unaware")}
+    for m, (c, name) in styles.items():
+        rs = sorted((r for r in table if r["method"] == m and r["depth_err"] == ACCEPT[1]), key=lambda r: r["outlier"])
+        if len(rs) < 2:
+            continue
+        x = [100 * r["outlier"] for r in rs]
+        ax.plot(x, [r["median_cm"] for r in rs], "-o", color=c, label=f"{name}, median")
+        ax.plot(x, [r["p90_cm"] for r in rs], "--", color=c, alpha=0.7, label=f"{name}, p90")
+    ax.axhline(3.0, color="grey", lw=0.8, ls=":")
+    ax.axhline(6.0, color="grey", lw=0.8, ls=":")
+    ax.set_xlabel("matcher outlier rate (%)")
+    ax.set_ylabel("contact position error (cm)")
+    ax.set_title(f"Contact transfer error, {ACCEPT[1]:.0%} depth scale error (synthetic demos)")
+    ax.set_yscale("log")
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
