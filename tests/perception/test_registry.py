@@ -29,7 +29,9 @@ def test_paper_models_fail_with_model_unavailable():
         assert name in registry.backends(role)
         with pytest.raises(PerceptionError) as e:
             registry.build(role, name)
-        assert e.value.code == MODEL_UNAVAILABLE and name in e.value.message
+        # one line that names the role and says which parameter to set
+        assert e.value.code == MODEL_UNAVAILABLE and f"({role})" in e.value.message
+        assert f"models.{role}." in e.value.message and "\n" not in e.value.message
 
 
 def test_unknown_backend_role_and_bad_params():

@@ -78,4 +78,4 @@ def test_failed_solve_is_reported_as_failed(g1):
     res = solver.solve(prob, g1)
     assert not res.stats.converged
     assert not res.success
-    assert "NOT converged" in res.stats.status_message()
+    assert "did not converge in" in res.stats.status_message()
