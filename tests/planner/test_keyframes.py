@@ -26,13 +26,15 @@ def _s1_perception():
             LimbTarget("left_foot", n(0.32, 0.12, 0.0)), LimbTarget("right_foot", n(0.32, -0.12, 0.0)),
             LimbTarget("left_hand", n(0.70, 0.2, 0.22), n(0, 1, 0), "box"),
             LimbTarget("right_hand", n(0.70, -0.2, 0.22), n(0, -1, 0), "box")]),
+        # Perception sees the box where it is now (0.7, 0); the keyframes move these contacts with
+        # the box to its placement goal (1.48, 1.0).
         SubtaskPerception(1, "place the box next to the shelf", [
-            LimbTarget("left_foot", n(1.1, 1.12, 0.0)), LimbTarget("right_foot", n(1.1, 0.88, 0.0)),
-            LimbTarget("left_hand", n(1.48, 1.2, 0.22), n(0, 1, 0), "box"),
-            LimbTarget("right_hand", n(1.48, 0.8, 0.22), n(0, -1, 0), "box")]),
+            LimbTarget("left_foot", n(0.32, 0.12, 0.0)), LimbTarget("right_foot", n(0.32, -0.12, 0.0)),
+            LimbTarget("left_hand", n(0.70, 0.2, 0.22), n(0, 1, 0), "box"),
+            LimbTarget("right_hand", n(0.70, -0.2, 0.22), n(0, -1, 0), "box")]),
         SubtaskPerception(2, "step on the box and grab the basket", [
-            LimbTarget("left_foot", n(1.50, 1.1, 0.0), object_id="box"),
-            LimbTarget("right_foot", n(1.50, 0.9, 0.0), object_id="box"),
+            LimbTarget("left_foot", n(0.72, 0.1, 0.0), object_id="box"),
+            LimbTarget("right_foot", n(0.72, -0.1, 0.0), object_id="box"),
             LimbTarget("right_hand", n(1.73, 0.92, 1.68), n(-1, 0, 0), "basket")]),
     ]
 
@@ -45,8 +47,15 @@ def test_s1_from_perception_to_a_valid_to_problem():
     objects = {o.id: o for o in OBJECTS}
     kfs = retarget_subtasks(_s1_perception(), OBJECTS, stance, retargeter, placements)
     assert len(kfs) == 3
-    feet_z = [c.position[2] for c in kfs[2].contacts if c.limb.endswith("foot")]
-    assert feet_z == pytest.approx([0.30, 0.30])        # foot height set by the task (box top)
+    feet = [c.position for c in kfs[2].contacts if c.limb.endswith("foot")]
+    assert [p[2] for p in feet] == pytest.approx([0.30, 0.30])   # foot height set by the task (box top)
+    assert [p[0] for p in feet] == pytest.approx([1.50, 1.50])   # on the box where it was placed
+    hands = [c.position for c in kfs[1].contacts if c.limb.endswith("hand")]
+    assert np.mean(hands, axis=0)[:2] == pytest.approx([1.48, 1.0], abs=1e-9)  # placing: hands at the goal
+    for kf in kfs:                                                # the acceptance bounds of issue 5
+        r = kf.retarget
+        assert max(r.residuals.values()) <= 0.01 and r.within_joint_limits and r.min_self_distance >= 0.0
+        assert max(r.foot_tilt.values()) < 0.02
     x0 = [0, 0, 0.79, 0, 0, 0] + [0.0] * 29
     problem, schedule = build_problem(OBJECTS, kfs, stance, x0, name="s1_basket")
     validate_problem(problem)

@@ -9,7 +9,11 @@ pose (pelvis orientation after the rigid transfer, joint angles mapped onto the 
 * hand targets: the transferred points and normals;
 * the human pelvis orientation and joint angles go into the IK as base orientation and posture prior;
 * the desired mid-foot position of eq. (2) is the keyframe's mid-foot point, referred to the object
-  the hands touch.
+  the hands touch;
+* perception sees every object where it is now, but earlier subtasks may move it: a subtask whose
+  hands hold an object with a placement goal is keyframed at the goal (its contacts and floor feet
+  moved rigidly with the object), and later contacts on a moved object move with it
+  (:class:`_Displacement`).
 
 Then :func:`build_problem` assembles scene, keyframes, schedule and options into the TO's problem.
 """
@@ -22,7 +26,7 @@ import numpy as np
 from lomanip_to.problem import FLOOR, Options, PlacementGoal, Problem, SceneObject
 
 from .retargeting import FEET, HANDS, LimbTarget, RetargetTarget, Retargeter, RetargetingError
-from .schedule import Schedule, Stance, SubtaskKeyframe, Timing, plan_schedule
+from .schedule import Schedule, actions_of, Stance, SubtaskKeyframe, Timing, plan_schedule
 
 
 @dataclass
@@ -46,6 +50,33 @@ def surface_height(object_id: str, objects: dict[str, SceneObject]) -> float:
     return float(o.position[2] + o.top_z())
 
 
+@dataclass(frozen=True)
+class _Displacement:
+    """Planar rigid motion of an object from where perception saw it to where the plan puts it."""
+
+    origin: np.ndarray   # object position when perceived
+    target: np.ndarray   # its planned position
+    dyaw: float
+
+    @staticmethod
+    def of(obj: SceneObject, goal: PlacementGoal) -> "_Displacement":
+        return _Displacement(np.asarray(obj.position, float), np.asarray(goal.position, float),
+                             float(goal.yaw) - obj.yaw())
+
+    def _R(self) -> np.ndarray:
+        c, s = np.cos(self.dyaw), np.sin(self.dyaw)
+        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+    def point(self, p: np.ndarray) -> np.ndarray:
+        return self.target + self._R() @ (np.asarray(p, float) - self.origin)
+
+    def normal(self, n: np.ndarray) -> np.ndarray:
+        return self._R() @ np.asarray(n, float)
+
+    def moved(self, t: LimbTarget) -> LimbTarget:
+        return LimbTarget(t.limb, self.point(t.position), self.normal(t.normal), t.object_id)
+
+
 def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObject], stance: Stance,
                       retargeter: Retargeter, placements: dict[str, PlacementGoal] | None = None,
                       current_qpos: np.ndarray | None = None) -> list[SubtaskKeyframe]:
@@ -56,13 +87,26 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
                 "right_foot": (stance.right.copy(), stance.right_surface)}
     out: list[SubtaskKeyframe] = []
     q = current_qpos
+    moved: dict[str, _Displacement] = {}
     for st in subtasks:
         targets: list[LimbTarget] = []
-        given = {c.limb: c for c in st.contacts}
+        held = [c.object_id for c in st.contacts if c.limb in HANDS]
+        placing = next((oid for oid in held if oid in placements and oid in by_id), None) \
+            if "place" in actions_of(st.prompt) else None
+        if placing is not None:
+            moved[placing] = _Displacement.of(by_id[placing], placements[placing])
+        carried = next((moved[oid] for oid in held if oid in moved), None)
+        given = {}
+        for c in st.contacts:   # perceived where the objects are now; move them to where the plan has them
+            d = moved.get(c.object_id) if c.object_id in by_id else carried
+            given[c.limb] = d.moved(c) if d is not None else c
         for limb in FEET:
             if limb in given:
                 c = given[limb]
-                p = np.array([c.position[0], c.position[1], surface_height(c.object_id, by_id)])
+                height = surface_height(c.object_id, by_id)
+                if c.object_id in moved:
+                    height += moved[c.object_id].target[2] - moved[c.object_id].origin[2]
+                p = np.array([c.position[0], c.position[1], height])
                 feet_now[limb] = (p, c.object_id or FLOOR)
             p, surface = feet_now[limb]
             targets.append(LimbTarget(limb, p.copy(), np.array([0.0, 0.0, 1.0]), surface))
@@ -73,7 +117,17 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
                     raise RetargetingError(-2, f"subtask {st.index}: {limb} touches unknown object {c.object_id!r}")
                 targets.append(LimbTarget(limb, np.asarray(c.position, float), np.asarray(c.normal, float), c.object_id))
         try:
-            res = retargeter.solve(RetargetTarget(tuple(targets), st.base_orientation_wxyz, st.joint_prior), q)
+            try:
+                res = retargeter.solve(RetargetTarget(tuple(targets), st.base_orientation_wxyz, st.joint_prior), q)
+            except RetargetingError:
+                # the demonstrator's stance is an adult's: let floor feet slide to where the G1 reaches
+                res = retargeter.solve(RetargetTarget(tuple(targets), st.base_orientation_wxyz, st.joint_prior,
+                                                      floor_feet_slide=True), q)
+                targets = [LimbTarget(t.limb, res.contact_points[t.limb].copy(), t.normal, t.object_id)
+                           if t.limb in FEET else t for t in targets]
+                for t in targets:
+                    if t.limb in FEET:
+                        feet_now[t.limb] = (t.position.copy(), t.object_id)
         except RetargetingError as exc:
             raise RetargetingError(exc.code, f"subtask {st.index} ({st.prompt!r}): {exc}") from exc
         q = res.qpos
@@ -81,7 +135,8 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
         rolling = frozenset(o.id for o in objects if o.object_class == "trolley")
         placement = next((placements[oid] for oid in hand_objects if oid in placements), None)
         out.append(SubtaskKeyframe(st.index, st.prompt, res.qpos, targets, rolling_objects=rolling,
-                                   placement=placement, reference_object_id=hand_objects[0] if hand_objects else ""))
+                                   placement=placement, reference_object_id=hand_objects[0] if hand_objects else "",
+                                   retarget=res))
     return out
 
 

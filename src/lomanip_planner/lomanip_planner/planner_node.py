@@ -5,6 +5,10 @@
   /lomanip/keyframes          lomanip_msgs/KeyframeArray    (latched) keyframes of the last plan
   /lomanip/contact_schedule   lomanip_msgs/ContactSchedule  (latched)
 
+Subscribes /lomanip/to/progress (lomanip_msgs/SolverStatistics, one per TO iteration, rate-limited by
+lomanip_to) to forward the TO iteration into the action feedback. With ``execute`` the trajectory
+is then run under physics through the sim's /lomanip/sim/execute action (lomanip_msgs/action/Execute).
+
 Sequence: optional scenario reset (/lomanip/sim/reset) -> perception (/lomanip/perception/
 extract_contacts) -> retargeting and contact schedule (in this process) -> trajectory optimisation
 (/lomanip/to/optimize, which also publishes /lomanip/trajectory). One plan at a time: a request
@@ -21,7 +25,7 @@ from typing import Callable
 
 import numpy as np
 import rclpy
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
@@ -29,8 +33,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
-from lomanip_msgs.action import Plan
-from lomanip_msgs.msg import ContactSchedule, ErrorCode, KeyframeArray, SceneObjects, StageTiming
+from lomanip_msgs.action import Execute, Plan
+from lomanip_msgs.msg import ContactSchedule, ErrorCode, KeyframeArray, SceneObjects, SolverStatistics, StageTiming
 from lomanip_msgs.srv import ExtractContacts, OptimizeTrajectory, PlanTask, ResetScenario
 
 from . import conversions as conv
@@ -59,7 +63,7 @@ class PlannerNode(Node):
         super().__init__("lomanip_planner")
         self.timeouts = {stage: float(self.declare_parameter(f"{stage}_timeout", default).value)
                          for stage, default in (("state", 10.0), ("reset", 60.0), ("perception", 300.0), ("retargeting", 60.0),
-                                                ("optimisation", 900.0))}
+                                                ("optimisation", 900.0), ("execution", 600.0))}
         from .retargeting import Retargeter
 
         self.retargeter = Retargeter()
@@ -67,16 +71,20 @@ class PlannerNode(Node):
         self._scene: SceneObjects | None = None
         self._joints: JointState | None = None
         self._pelvis = None
+        self._to_progress: Callable[[SolverStatistics], None] | None = None
         group = ReentrantCallbackGroup()
         self.create_subscription(SceneObjects, "/lomanip/scene_objects", self._on_scene, LATCHED, callback_group=group)
         self.create_subscription(JointState, "/joint_states", self._on_joints, 10, callback_group=group)
         self.create_subscription(TFMessage, "/tf", self._on_tf, 10, callback_group=group)
+        self.create_subscription(SolverStatistics, "/lomanip/to/progress", self._on_to_progress, 10,
+                                 callback_group=group)
         self.pub_keyframes = self.create_publisher(KeyframeArray, "/lomanip/keyframes", LATCHED)
         self.pub_schedule = self.create_publisher(ContactSchedule, "/lomanip/contact_schedule", LATCHED)
         self.cli_reset = self.create_client(ResetScenario, "/lomanip/sim/reset", callback_group=group)
         self.cli_perception = self.create_client(ExtractContacts, "/lomanip/perception/extract_contacts",
                                                  callback_group=group)
         self.cli_to = self.create_client(OptimizeTrajectory, "/lomanip/to/optimize", callback_group=group)
+        self.cli_execute = ActionClient(self, Execute, "/lomanip/sim/execute", callback_group=group)
         self.create_service(PlanTask, "/lomanip/plan", self._on_plan_service, callback_group=group)
         self._action = ActionServer(self, Plan, "/lomanip/plan", execute_callback=self._on_plan_action,
                                     goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
@@ -94,6 +102,11 @@ class PlannerNode(Node):
         for t in msg.transforms:
             if t.header.frame_id == "world" and t.child_frame_id == "pelvis":
                 self._pelvis = t.transform
+
+    def _on_to_progress(self, msg: SolverStatistics) -> None:
+        sink = self._to_progress
+        if sink is not None:
+            sink(msg)
 
     # --- entry points ----------------------------------------------------------------------------
     def _on_goal(self, goal) -> GoalResponse:
@@ -223,18 +236,68 @@ class PlannerNode(Node):
         to_request = request_from_problem(problem, self.retargeter_joint_names())
         to_request.scene = self._scene
         to_request.options = request.options
-        res = self._call(self.cli_to, to_request, "optimisation", cancelled)
+
+        def to_progress(msg: SolverStatistics) -> None:
+            feedback(Progress("optimisation", n - 1, n, iteration=msg.iterations, progress=0.5,
+                              message=f"TO iteration {msg.iterations}: objective {msg.cost:.3e}, constraint "
+                                      f"violation {msg.max_dynamics_violation:.1e} [{msg.status_message}]"))
+
+        self._to_progress = to_progress
+        try:
+            res = self._call(self.cli_to, to_request, "optimisation", cancelled)
+        finally:
+            self._to_progress = None
         stage_done("optimisation", t0)
         if res.error_code.val != ErrorCode.SUCCESS:
             response.trajectory.solver_statistics = res.trajectory.solver_statistics
             raise PlanFailed(res.error_code.val, f"optimisation: {res.error_code.message}")
         response.trajectory = res.trajectory
         if request.execute:
-            raise PlanFailed(ErrorCode.NOT_READY, "execution under physics is not available yet "
-                             "(the trajectory is in this response and on /lomanip/trajectory)")
+            t0 = time.perf_counter()
+            self._execute(res.trajectory, response, feedback, cancelled, n)
+            stage_done("execution", t0)
         feedback(Progress("done", n - 1, n, progress=1.0, message="trajectory ready"))
         response.error_code = ErrorCode(val=ErrorCode.SUCCESS, message=res.error_code.message)
         log.info("plan ready: " + ", ".join(f"{t.stage} {t.seconds:.1f} s" for t in timings))
+
+    def _execute(self, trajectory, response, feedback, cancelled, n: int) -> None:
+        """Run the trajectory under physics on the sim's Execute action; fills response.execution."""
+        timeout = self.timeouts["execution"]
+        if not self.cli_execute.wait_for_server(timeout_sec=min(10.0, timeout)):
+            raise PlanFailed(ErrorCode.NOT_READY, "execution: action /lomanip/sim/execute is not available")
+        points = trajectory.joint_trajectory.points
+        duration = points[-1].time_from_start.sec + 1e-9 * points[-1].time_from_start.nanosec if points else 0.0
+
+        def on_feedback(fb) -> None:
+            f = fb.feedback
+            feedback(Progress("execution", n - 1, n, progress=0.9 + 0.1 * f.progress,
+                              message=f"t={f.time_from_start:.1f} s, base error {f.base_position_error * 100:.1f} cm, "
+                                      f"joint RMS error {f.joint_error_rms:.3f} rad"))
+
+        feedback(Progress("execution", n - 1, n, progress=0.9, message=f"executing {duration:.1f} s under physics"))
+        done = threading.Event()
+        goal_future = self.cli_execute.send_goal_async(Execute.Goal(trajectory=trajectory), feedback_callback=on_feedback)
+        goal_future.add_done_callback(lambda _: done.set())
+        if not done.wait(10.0):
+            raise PlanFailed(ErrorCode.TIMEOUT, "execution: the sim did not accept the goal within 10 s")
+        handle = goal_future.result()
+        if handle is None or not handle.accepted:
+            raise PlanFailed(ErrorCode.BUSY, "execution: the sim rejected the goal (another execution runs?)")
+        done.clear()
+        result_future = handle.get_result_async()
+        result_future.add_done_callback(lambda _: done.set())
+        deadline = time.monotonic() + timeout
+        while not done.wait(0.2):
+            if cancelled() or time.monotonic() > deadline:
+                handle.cancel_goal_async()
+                done.wait(10.0)
+                if cancelled():
+                    raise PlanFailed(ErrorCode.CANCELLED, "cancelled during execution (the robot stands)")
+                raise PlanFailed(ErrorCode.TIMEOUT, f"execution did not finish within {timeout:.0f} s")
+        result = result_future.result().result
+        response.execution = result.metrics
+        if result.error_code.val != ErrorCode.SUCCESS:
+            raise PlanFailed(result.error_code.val, f"execution: {result.error_code.message}")
 
     @staticmethod
     def retargeter_joint_names() -> list[str]:

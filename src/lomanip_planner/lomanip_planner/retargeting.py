@@ -77,6 +77,12 @@ class RetargetTarget:
     joint_prior: Mapping[str, float] = field(default_factory=dict)
     #: feet pitch relative to their surface (the paper constrains it; 0 = flat)
     feet_pitch: float = 0.0
+    #: feet on the floor keep their height and flat orientation but may slide horizontally (weak
+    #: pull to their target): the demonstrator's stance suits an adult, not the smaller G1, so
+    #: when the hands cannot reach from the human's foot positions the robot steps closer, as the
+    #: paper's foot-position cost (eq. 2) later asks of the TO. The residual of such a foot is its
+    #: height error; its final position becomes the keyframe's foot target.
+    floor_feet_slide: bool = False
 
 
 @dataclass
@@ -88,6 +94,8 @@ class RetargetResult:
     within_joint_limits: bool
     iterations: int
     seconds: float
+    #: limb -> where its contact point ended (feet: sole centre on the surface), world frame
+    contact_points: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def base_position(self) -> np.ndarray:
@@ -165,6 +173,8 @@ class Retargeter:
         """
         t0 = time.perf_counter()
         targets = self._check(target)
+        self._sliding = {limb for limb, t in targets.items() if limb in FEET and target.floor_feet_slide
+                         and t.object_id in ("", "floor")}
         feet = [t for t in targets.values() if t.limb in FEET]
         base_R = self._base_rotation(target, feet)
         starts = [] if initial_qpos is None else [_finite(initial_qpos, 36, "initial_qpos")]
@@ -215,6 +225,8 @@ class Retargeter:
         self.posture_task.set_target(posture)
         for limb, t in targets.items():
             task = self.limb_tasks[limb]
+            if limb in FEET:
+                task.set_position_cost(self._foot_position_cost(target, t))
             R = self._limb_rotation(limb, t, base_R, target.feet_pitch)
             p = t.position + (self._sole_offset * t.normal / np.linalg.norm(t.normal) if limb in FEET else 0.0)
             task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3(frames.matrix_to_quat(R)), p))
@@ -233,6 +245,11 @@ class Retargeter:
                 if max(res.values(), default=0.0) < 0.2 * self.contact_tolerance and np.linalg.norm(vel) < 1e-2:
                     break
         return self.configuration.q.copy(), iterations
+
+    @staticmethod
+    def _foot_position_cost(target: RetargetTarget, t: LimbTarget) -> np.ndarray:
+        slide = target.floor_feet_slide and t.object_id in ("", "floor")
+        return np.array([1.0, 1.0, 1000.0]) if slide else np.full(3, 1000.0)
 
     def _check(self, target: RetargetTarget) -> dict[str, LimbTarget]:
         targets: dict[str, LimbTarget] = {}
@@ -287,7 +304,10 @@ class Retargeter:
         for limb, t in targets.items():
             p = self.configuration.get_transform_frame_to_world(limb, "site").translation()
             goal = t.position + (self._sole_offset * t.normal if limb in FEET else 0.0)
-            out[limb] = float(np.linalg.norm(p - goal))
+            err = p - goal
+            if limb in getattr(self, "_sliding", ()):
+                err = np.dot(err, t.normal) * t.normal   # a sliding foot only has to stay on its surface
+            out[limb] = float(np.linalg.norm(err))
         return out
 
     def _result(self, targets: dict[str, LimbTarget], iterations: int, seconds: float) -> RetargetResult:
@@ -302,7 +322,11 @@ class Retargeter:
         lo, hi = model.jnt_range[1:, 0], model.jnt_range[1:, 1]
         within = bool(np.all(q[7:] >= lo - 1e-6) and np.all(q[7:] <= hi + 1e-6))
         min_dist = self._min_self_distance()
-        result = RetargetResult(q, residuals, tilt, float(min_dist), within, iterations, seconds)
+        points = {}
+        for limb, t in targets.items():
+            p = data.site(limb).xpos.copy()
+            points[limb] = p - self._sole_offset * t.normal if limb in FEET else p
+        result = RetargetResult(q, residuals, tilt, float(min_dist), within, iterations, seconds, points)
         worst = max(residuals, key=residuals.get)
         if residuals[worst] > self.contact_tolerance:
             raise RetargetingError(RETARGETING_INFEASIBLE,

@@ -99,6 +99,7 @@ class SubtaskKeyframe:
     rolling_objects: frozenset = frozenset()   # ids of wheeled objects (push -> ``rolling``)
     placement: PlacementGoal | None = None
     reference_object_id: str = ""
+    retarget: object | None = None       # the RetargetResult (residuals, limits, timing) it came from
 
 
 @dataclass
