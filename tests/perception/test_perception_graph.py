@@ -54,7 +54,7 @@ def test_extract_contacts_with_sim(scenario, prompts, client, tmp_path):
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         got = {}
         client.create_subscription(ContactSet, "/lomanip/contacts", lambda m: got.__setitem__("contacts", m), latched)
-        client.create_subscription(MarkerArray, "/lomanip/perception/markers", lambda m: got.__setitem__("markers", m), latched)
+        client.create_subscription(MarkerArray, "/lomanip/perception/contact_markers", lambda m: got.__setitem__("markers", m), latched)
 
         res = _call(client, cli, ExtractContacts.Request(prompts=prompts))
         assert res.error_code.val == ErrorCode.SUCCESS, res.error_code.message + "\n" + perc_log.read_text()[-2000:]
@@ -111,3 +111,64 @@ def _bad_inputs(client, cli, perc):
     # still serving
     res = _call(client, cli, ExtractContacts.Request(prompts=["pick up the box"]))
     assert res.error_code.val == ErrorCode.SUCCESS and perc.poll() is None
+
+
+def test_planner_gets_contacts_from_the_perception_node(client, tmp_path):
+    """The planner's perception call over DDS (sim + perception + planner, no TO node): the plan
+    carries the perception contacts and keyframes retargeted from them, then stops at the missing
+    optimiser with NOT_READY naming its service."""
+    from lomanip_msgs.msg import ErrorCode
+    from lomanip_msgs.srv import PlanTask
+
+    logs = {n: tmp_path / f"{n}.log" for n in ("sim", "perception", "planner")}
+    with ros_process(["-m", "lomanip_sim.sim_node", "--ros-args", "-p", "scenario:=s2_trolley",
+                      "-p", "camera_rate:=2.0"], logs["sim"]) as sim, \
+            ros_process(["-m", "lomanip_perception.perception_node"], logs["perception"]) as perc, \
+            ros_process(["-m", "lomanip_planner.planner_node", "--ros-args", "-p", "optimisation_timeout:=2.0"],
+                        logs["planner"]) as planner:  # fmt: skip
+        cli = client.create_client(PlanTask, "/lomanip/plan")
+        wait_for(lambda: cli.service_is_ready(), 60, "plan service", proc=planner, log_path=logs["planner"])
+        from geometry_msgs.msg import Point
+        from lomanip_launch.task_file import load_task
+        from lomanip_msgs.msg import PlacementGoal
+
+        task = load_task("s2_trolley")  # the S2 task file: its prompts and the box's placement goal
+        assert list(task.prompts) == S2
+        goals = [PlacementGoal(object_id=g.object_id, position=Point(x=g.position[0], y=g.position[1], z=g.position[2]),
+                               yaw=g.yaw) for g in task.placement_goals]  # fmt: skip
+        res = _call(client, cli, PlanTask.Request(prompts=S2, placement_goals=goals), timeout=240.0)
+        text = "\n".join(p.read_text()[-1500:] for p in logs.values())
+        assert [len(s.contacts) for s in res.contacts.subtasks] and len(res.contacts.subtasks) == len(S2), text
+        for sub, expected in zip(res.contacts.subtasks, EXPECTED["s2_trolley"]):
+            assert {c.limb: c.object_id for c in sub.contacts if c.object_id != "floor"} == expected
+        assert len(res.human_poses) == len(S2)
+        stages = [t.stage for t in res.timings]
+        assert stages[:1] == ["perception"], (stages, res.error_code.message, text)
+        print("plan stages", stages, "->", res.error_code.message)
+        # retargeting consumed the perception contacts; the plan then stops at the missing optimiser
+        assert res.error_code.val == ErrorCode.NOT_READY, (res.error_code.message, text)
+        assert stages == ["perception", "retargeting"] and "/lomanip/to/optimize" in res.error_code.message
+        assert len(res.keyframes.keyframes) > 0
+        assert sim.poll() is None and perc.poll() is None and planner.poll() is None
+
+
+def test_paper_model_file_without_weights_stops_the_node_with_one_line(tmp_path):
+    """The paper's parameter file on a machine without the weights: exit 2 within seconds, one line
+    naming the model and the parameter to set, no traceback."""
+    import subprocess
+    import sys
+    import time
+
+    from tests.graph.helpers import ROOT, graph_env
+
+    env = {**graph_env(), "HF_HUB_CACHE": str(tmp_path / "hub")}
+    paper = ROOT / "src/lomanip_perception/config/paper_models.yaml"
+    t0 = time.monotonic()
+    r = subprocess.run([sys.executable, "-m", "lomanip_perception.perception_node", "--ros-args", "-p",
+                        f"config_file:={paper}"], env=env, capture_output=True, text=True, timeout=60)  # fmt: skip
+    elapsed = time.monotonic() - t0
+    lines = [line for line in r.stderr.splitlines() if line.strip()]
+    assert r.returncode == 2, r.stderr
+    assert len(lines) == 1 and lines[0].startswith("lomanip_perception: error: FLUX.1 (image_generator)"), r.stderr
+    assert "models.image_generator.params.path" in lines[0] and "Traceback" not in r.stderr
+    assert elapsed < 30.0

@@ -75,6 +75,8 @@ def build_graph(args: argparse.Namespace, run_dir: Path) -> ProcessGraph:
     if overrides:
         ros_args += ["-p", f"scenario_overrides:={yaml.safe_dump(overrides, default_flow_style=True).strip()}"]
     specs = [NodeSpec("lomanip_sim", [python, "-m", "lomanip_sim.sim_node", *ros_args]),
+             NodeSpec("lomanip_perception", [python, "-m", "lomanip_perception.perception_node", "--ros-args",
+                                             "--params-file", str(params_file)]),
              NodeSpec("lomanip_to", [python, "-m", "lomanip_to.to_node", "--ros-args", "--params-file", str(params_file)]),
              NodeSpec("lomanip_planner", [python, "-m", "lomanip_planner.planner_node", "--ros-args",
                                           "--params-file", str(params_file)])]

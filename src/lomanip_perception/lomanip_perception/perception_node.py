@@ -8,17 +8,23 @@ Subscribes:
   /lomanip/scene_objects                 lomanip_msgs/SceneObjects (latched)
 Publishes (latched, so late subscribers get the last answer):
   /lomanip/contacts                      lomanip_msgs/ContactSet
-  /lomanip/perception/markers            visualization_msgs/MarkerArray (contact spheres, normals, labels)
+  /lomanip/perception/contact_markers    visualization_msgs/MarkerArray (contact spheres, normals, labels;
+                                         RViz / Foxglove, frame 'world')
 
 Model backends come from config/perception.yaml (parameter config_file); the default backends are
 the 'synthetic' offline stand-ins (see lomanip_perception.synthetic). Any failure answers with an
-error code and a one-line message naming the subtask; the node keeps serving.
+error code and a one-line message naming the subtask; the node keeps serving. At start-up the node
+logs one line per role naming the backend that serves it (and 'SYNTHETIC' for the offline stand-ins)
+and its start-up time; a backend that cannot load (the paper's models without local weights) stops
+the node with exit code 2 and one line.
 """
 from __future__ import annotations
 
 import sys
 import threading
 import time
+
+_T_START = time.perf_counter()  # start-up time is measured from here (before rclpy, mujoco, open3d)
 
 import lomanip_sim  # noqa: F401  (headless GL backend before mujoco)
 import rclpy  # noqa: E402
@@ -34,7 +40,7 @@ from lomanip_msgs.msg import ContactSet, ErrorCode, SceneObjects  # noqa: E402
 from lomanip_msgs.srv import ExtractContacts, GetRGBDFrame  # noqa: E402
 
 from . import conversions as conv  # noqa: E402
-from .config import build_from_config, load_config  # noqa: E402
+from .config import build_from_config, default_config_path, load_config  # noqa: E402
 from .errors import FAILURE, NOT_READY, TIMEOUT, PerceptionError  # noqa: E402
 from .pipeline import PerceptionPipeline, SceneInput  # noqa: E402
 
@@ -51,7 +57,8 @@ class PerceptionNode(Node):
         if p["transfer_method"]:
             overrides = {**(overrides or {}), "transfer": {**(overrides or {}).get("transfer", {}),
                                                            "method": p["transfer_method"]}}  # fmt: skip
-        cfg = load_config(p["config_file"] or None, overrides)
+        cfg_path = p["config_file"] or str(default_config_path())
+        cfg = load_config(cfg_path, overrides)
         models, transfer, seed = build_from_config(cfg)
         self.pipeline = PerceptionPipeline(models, transfer, seed, logger=None)
         self.scene_timeout = p["scene_timeout"]
@@ -63,14 +70,18 @@ class PerceptionNode(Node):
         self.create_subscription(SceneObjects, "/lomanip/scene_objects", self._on_scene, LATCHED, callback_group=io)
         self.frame_client = self.create_client(GetRGBDFrame, "/lomanip/sim/get_rgbd_frame", callback_group=io)
         self.pub_contacts = self.create_publisher(ContactSet, "/lomanip/contacts", LATCHED)
-        self.pub_markers = self.create_publisher(MarkerArray, "/lomanip/perception/markers", LATCHED)
+        self.pub_markers = self.create_publisher(MarkerArray, "/lomanip/perception/contact_markers", LATCHED)
         self.create_service(ExtractContacts, "/lomanip/perception/extract_contacts", self._on_extract,
                             callback_group=MutuallyExclusiveCallbackGroup())  # fmt: skip
-        synthetic = [r for r, n in models.names().items() if n == "synthetic"]
+        names, described = models.names(), models.describe()
+        for role in names:
+            what = ("SYNTHETIC offline stand-in (reads the synthetic demonstration's ground truth, not a model)"
+                    if names[role] == "synthetic" else described[role])
+            self.get_logger().info(f"role {role:<15} backend {names[role]}: {what}")
         self.get_logger().info(
-            f"ready: transfer {transfer.method} ({transfer.iterations} iterations, top-{transfer.top_n}, "
-            f"{'similarity' if transfer.similarity else 'rigid'}); backends {models.names()}"
-            + (f"; SYNTHETIC offline stand-ins for: {', '.join(synthetic)}" if synthetic else ""))
+            f"ready in {time.perf_counter() - _T_START:.2f} s (config {cfg_path}): transfer {transfer.method} "
+            f"({transfer.iterations} iterations, top-{transfer.top_n}, "
+            f"{'similarity' if transfer.similarity else 'rigid'} SVD)")  # fmt: skip
 
     def _declare_parameters(self) -> dict:
         defaults = {"config_file": "", "config_overrides": "", "transfer_method": "", "scene_timeout": 5.0,
