@@ -1,0 +1,102 @@
+"""wbc: the TSID QP controller executes real TO results (lomanip_to fixtures) under physics.
+
+Torques only: no weld, no qpos writes. Bounds are from measured runs (2 ms step, see
+docs/execution.md) with margin: case_stand measured 0.6 mm / 0.005 rad, case_one_step 1.7 cm
+pelvis and 0.13 rad max joint error (the swing leg at touch-down).
+"""
+
+import mujoco
+import numpy as np
+import pytest
+from to_cases import simulation
+
+from lomanip_sim.robot_model import FOOT_SITES
+from lomanip_sim.wbc import NJ, WholeBodyController, _rot_error
+
+
+def _track(sim, tr, seconds, every=10):
+    """Run the WBC for ``seconds``; returns (max base error, max joint error, max rms joint error, site log)."""
+    wbc = WholeBodyController(sim.world, tr)
+    sim.set_controller(wbc)
+    eb = ej = ejr = 0.0
+    sites = {side: [] for side in FOOT_SITES}
+    n = int(round(seconds / sim.timestep))
+    sid = {side: mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_SITE, s) for side, s in FOOT_SITES.items()}
+    for k in range(n):
+        sim.step()
+        st = wbc.status
+        if st.t_ref <= tr.duration:
+            eb, ej, ejr = max(eb, st.base_position_error), max(ej, st.joint_error_max), max(ejr, st.joint_error_rms)
+        if k % every == 0:
+            for side, s in FOOT_SITES.items():
+                sites[side].append(sim.data.site_xpos[sid[side]].copy())
+            assert not sim.has_fallen(), f"fell at t={sim.time:.2f}"
+    return wbc, eb, ej, ejr, {k: np.array(v) for k, v in sites.items()}
+
+
+def test_stand_plan_tracked_tightly():
+    sim, tr = simulation("case_stand")
+    wbc, eb, ej, _ejr, _ = _track(sim, tr, tr.duration + 0.5)
+    assert eb < 0.005 and ej < 0.03
+    assert wbc.status.qp_failures == 0 and wbc.status.qp_ok
+    assert np.all(np.abs(sim.last_torques) <= sim.world.torque_limits + 1e-9)
+
+
+def test_one_step_foot_really_moves():
+    sim, tr = simulation("case_one_step")
+    wbc, eb, ej, ejr, feet = _track(sim, tr, tr.duration + 0.5)
+    assert eb < 0.04, f"pelvis error {eb:.3f} m"
+    assert ej < 0.35 and ejr < 0.06, f"joint errors max {ej:.3f} rms {ejr:.3f} rad"
+    assert wbc.status.qp_failures == 0
+    # the swing foot = the one that is not in contact in the middle phase
+    mid = tr.phase_at(0.5 * tr.duration)
+    swing = "left" if "left_foot" not in mid.contacts else "right"
+    stance = "right" if swing == "left" else "left"
+    planned = wbc.refs.site_p[f"{swing}_foot"]
+    step_planned = planned[-1, :2] - planned[0, :2]
+    step_done = feet[swing][-1, :2] - feet[swing][0, :2]
+    assert np.linalg.norm(step_planned) > 0.05
+    assert np.linalg.norm(step_done - step_planned) < 0.03, (step_done, step_planned)
+    assert feet[swing][:, 2].max() - feet[swing][0, 2] > 0.02  # lifted off the floor
+    assert np.linalg.norm(feet[stance][-1] - feet[stance][0]) < 0.01  # the stance foot did not slip
+
+
+def test_push_during_hold_is_rejected():
+    """8 N s on the pelvis (40 N for 0.2 s) while the WBC holds the stand plan's final point."""
+    sim, tr = simulation("case_stand")
+    wbc = WholeBodyController(sim.world, tr)
+    sim.set_controller(wbc)
+    sim.run_for(tr.duration + 0.2)
+    for d in ((1, 0, 0), (0, 1, 0)):
+        sim.apply_external_force("pelvis", np.array(d, float) * 40.0, 0.2)
+        for _ in range(15):
+            sim.run_for(0.1)
+            assert not sim.has_fallen()
+        assert np.linalg.norm(sim.base_pose()[0][:2] - tr.base_pos[-1, :2]) < 0.05
+
+
+def test_references_and_helpers():
+    sim, tr = simulation("case_stand")
+    wbc = WholeBodyController(sim.world, tr)
+    assert wbc.refs.com.shape == (tr.n, 3) and wbc.refs.qdd.shape == (tr.n, NJ)
+    np.testing.assert_allclose(wbc.reference_qpos(0.0), tr.qpos(0), atol=1e-12)
+    # standing plan: CoM above the feet, at the G1's standing height
+    assert 0.55 < wbc.refs.com[0, 2] < 0.75
+    R = np.eye(3)
+    c, s = np.cos(0.1), np.sin(0.1)
+    Rz = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    np.testing.assert_allclose(_rot_error(Rz, R), [0, 0, np.sin(0.1)], atol=1e-12)
+
+
+@pytest.mark.slow
+def test_lift_box_friction_grasp():
+    """case_lift_box: the box (1 kg) leaves the table held only by hand friction (no weld)."""
+    sim, tr = simulation("case_lift_box")
+    z0 = sim.object_pose("box")[0][2]
+    wbc, eb, ej, _ejr, _ = _track(sim, tr, tr.duration + 0.5, every=50)
+    lift = sim.object_pose("box")[0][2] - z0
+    planned = tr.objects["box"][0][-1, 2] - tr.objects["box"][0][0, 2]
+    print(f"\nbox lifted {lift:.3f} m (planned {planned:.3f}), pelvis max err {eb:.3f} m, joint max {ej:.3f} rad")
+    assert lift > 0.05
+    assert eb < 0.05
+    assert sim.model.neq == 0  # no equality (weld) constraints exist in the world
