@@ -116,3 +116,102 @@ def camera_info_msg(stamp: Time, frame_id: str, width: int, height: int, fx: flo
     msg.header.stamp = stamp
     msg.header.frame_id = frame_id
     return msg
+
+
+# --- whole-body trajectories and execution metrics -----------------------------------------------
+def _duration_s(d) -> float:
+    return float(d.sec) + 1e-9 * float(d.nanosec)
+
+
+def _normal_from_pose(pose: Pose) -> tuple[np.ndarray | None, np.ndarray]:
+    """Contact pose -> (position, outward normal = the pose's z axis); a zero quaternion = free contact."""
+    q = pose.orientation
+    xyzw = np.array([q.x, q.y, q.z, q.w], dtype=float)
+    if np.linalg.norm(xyzw) < 1e-9:
+        return None, np.array([0.0, 0.0, 1.0])
+    R = frames.quat_to_matrix(frames.xyzw_to_wxyz(xyzw / np.linalg.norm(xyzw)))
+    return np.array([pose.position.x, pose.position.y, pose.position.z]), R[:, 2]
+
+
+def trajectory_from_msg(msg):
+    """lomanip_msgs/WholeBodyTrajectory -> lomanip_sim.trajectory.Trajectory (raises TrajectoryError).
+
+    Every array must be on the joint trajectory's time grid: the base trajectory point for point,
+    object trajectories and contact wrenches (when given) one entry per point.
+    """
+    from .trajectory import INVALID_TRAJECTORY, LimbContact, Phase, TrajectoryError, check_time_grid, make_trajectory
+
+    def bad(text: str):
+        return TrajectoryError(INVALID_TRAJECTORY, text)
+
+    jt, bt = msg.joint_trajectory, msg.base_trajectory
+    n = len(jt.points)
+    if n < 2:
+        raise bad(f"joint_trajectory needs at least 2 points, got {n}")
+    names = list(jt.joint_names)
+    for i, p in enumerate(jt.points):
+        if len(p.positions) != len(names):
+            raise bad(f"joint_trajectory.points[{i}] has {len(p.positions)} positions for {len(names)} joint names")
+        if p.velocities and len(p.velocities) != len(names):
+            raise bad(f"joint_trajectory.points[{i}] has {len(p.velocities)} velocities for {len(names)} joint names")
+    t = check_time_grid([_duration_s(p.time_from_start) for p in jt.points])
+    q = np.array([list(p.positions) for p in jt.points], dtype=float)
+    qd = np.array([list(p.velocities) for p in jt.points], dtype=float) if all(p.velocities for p in jt.points) else None
+    if len(bt.points) != n:
+        raise bad(f"base_trajectory has {len(bt.points)} points, joint_trajectory {n}: they must share one time grid")
+    tb = np.array([_duration_s(p.time_from_start) for p in bt.points])
+    if np.max(np.abs(tb - t)) > 1e-6:
+        i = int(np.argmax(np.abs(tb - t)))
+        raise bad(f"base_trajectory.points[{i}] is at t={tb[i]:.4f} s, joint point at {t[i]:.4f} s (one time grid)")
+    if any(len(p.transforms) != 1 for p in bt.points):
+        raise bad("base_trajectory points need exactly one transform (the pelvis pose)")
+    base = np.array([[p.transforms[0].translation.x, p.transforms[0].translation.y, p.transforms[0].translation.z]
+                     for p in bt.points])
+    quat = np.array([frames.xyzw_to_wxyz([r.x, r.y, r.z, r.w]) if (r.x, r.y, r.z, r.w) != (0, 0, 0, 0) else [0, 0, 0, 0]
+                     for r in (p.transforms[0].rotation for p in bt.points)], dtype=float)
+    lin = ang = None
+    if all(p.velocities for p in bt.points):
+        lin = np.array([[v.linear.x, v.linear.y, v.linear.z] for v in (p.velocities[0] for p in bt.points)])
+        ang = np.array([[v.angular.x, v.angular.y, v.angular.z] for v in (p.velocities[0] for p in bt.points)])
+    phases = []
+    for k, ph in enumerate(msg.contact_schedule.phases):
+        if len(ph.contact_object_ids) != len(ph.limbs_in_contact) or (
+                ph.contact_poses and len(ph.contact_poses) != len(ph.limbs_in_contact)):
+            raise bad(f"contact_schedule.phases[{k}]: limbs_in_contact, contact_object_ids and contact_poses differ in length")
+        contacts = {}
+        for j, (limb, oid) in enumerate(zip(ph.limbs_in_contact, ph.contact_object_ids)):
+            pos, normal = _normal_from_pose(ph.contact_poses[j]) if ph.contact_poses else (None, np.array([0.0, 0.0, 1.0]))
+            contacts[limb] = LimbContact(oid, pos, normal)
+        phases.append(Phase(_duration_s(ph.start), _duration_s(ph.end), contacts, walking=ph.phase_type == 1))
+    forces, torques = {}, {}
+    if msg.contact_wrenches:
+        if len(msg.contact_wrenches) != n:
+            raise bad(f"contact_wrenches has {len(msg.contact_wrenches)} entries for {n} points")
+        for i, knot in enumerate(msg.contact_wrenches):
+            for w in knot.wrenches:
+                forces.setdefault(w.limb, np.zeros((n, 3)))[i] = [w.wrench.force.x, w.wrench.force.y, w.wrench.force.z]
+                torques.setdefault(w.limb, np.zeros((n, 3)))[i] = [w.wrench.torque.x, w.wrench.torque.y, w.wrench.torque.z]
+    objects = {}
+    for ot in msg.object_trajectories:
+        if len(ot.poses) != n:
+            raise bad(f"object_trajectories[{ot.object_id!r}] has {len(ot.poses)} poses for {n} points")
+        try:
+            poses = [pose_from_msg(p) for p in ot.poses]
+        except frames.FrameError as e:
+            raise bad(f"object_trajectories[{ot.object_id!r}]: {e}") from None
+        objects[ot.object_id] = (np.array([p for p, _ in poses]), np.array([qq for _, qq in poses]))
+    return make_trajectory(t, names, q, qd, base, quat, lin, ang, phases=phases, forces=forces, torques=torques,
+                           objects=objects, scenario=msg.scenario, robot_name=msg.robot_name)  # fmt: skip
+
+
+def execution_metrics_msg(m):
+    """lomanip_sim.execution.ExecutionMetrics -> lomanip_msgs/ExecutionMetrics."""
+    from lomanip_msgs.msg import ExecutionMetrics
+
+    return ExecutionMetrics(
+        task_success=bool(m.task_success), task_success_detail=str(m.task_success_detail), fell=bool(m.fell),
+        duration=float(m.duration), real_time_factor=float(m.real_time_factor),
+        max_base_position_error=float(m.max_base_position_error), rms_base_position_error=float(m.rms_base_position_error),
+        max_joint_error=float(m.max_joint_error), rms_joint_error=float(m.rms_joint_error),
+        final_object_position_error=float(m.final_object_position_error),
+        final_object_yaw_error=float(m.final_object_yaw_error))  # fmt: skip

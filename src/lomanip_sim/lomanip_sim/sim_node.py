@@ -15,9 +15,15 @@ schedule from a copy of the state, so rendering never slows physics. Publishes:
 Services:
   /lomanip/sim/reset                lomanip_msgs/srv/ResetScenario
   /lomanip/sim/get_rgbd_frame       lomanip_msgs/srv/GetRGBDFrame
+Actions:
+  /lomanip/sim/execute              lomanip_msgs/action/Execute: a whole-body trajectory tracked by the
+                                    torque-level whole-body controller (lomanip_sim.wbc) inside the
+                                    physics loop; checked before anything moves; feedback at ~10 Hz;
+                                    cancel (or a reset) hands the robot to the standing controller.
 """
 from __future__ import annotations
 
+import contextlib
 import sys
 import threading
 import time
@@ -28,6 +34,7 @@ import rclpy  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue  # noqa: E402
 from geometry_msgs.msg import PoseStamped  # noqa: E402
 from rcl_interfaces.msg import ParameterDescriptor  # noqa: E402
+from rclpy.action import ActionServer, CancelResponse, GoalResponse  # noqa: E402
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup  # noqa: E402
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
@@ -35,14 +42,17 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E
 from sensor_msgs.msg import CameraInfo, Image, JointState  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
 
+from lomanip_msgs.action import Execute  # noqa: E402
 from lomanip_msgs.msg import ErrorCode, SceneObjects  # noqa: E402
 from lomanip_msgs.srv import GetRGBDFrame, ResetScenario  # noqa: E402
 from lomanip_sim import conversions as conv  # noqa: E402
 from lomanip_sim import frames  # noqa: E402
 from lomanip_sim.camera import RGBDCamera  # noqa: E402
+from lomanip_sim.execution import Execution, execution_error  # noqa: E402
 from lomanip_sim.robot_model import G1_JOINT_NAMES  # noqa: E402
 from lomanip_sim.scenario import ScenarioError, load_scenario, parse_overrides_yaml, scenario_names  # noqa: E402
 from lomanip_sim.simulator import Simulation  # noqa: E402
+from lomanip_sim.trajectory import TrajectoryError  # noqa: E402
 
 OPTICAL_FRAME = "scene_camera_optical"
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -66,10 +76,15 @@ class SimNode(Node):
         # once and can starve a reset for minutes on a loaded machine. A waiting reset sets this
         # flag and the physics loop stands aside until it is done.
         self._reset_waiting = threading.Event()
+        self._waiters = 0                       # threads (reset, execute) waiting for the world lock
+        self._waiters_lock = threading.Lock()
         self._camera_generation = 0             # bumped on reset so the render thread rebuilds
         self._snapshot_request: tuple[threading.Event, dict] | None = None
         self._stop = threading.Event()
         self._rtf = 0.0
+        self._execution: Execution | None = None   # the running Execute goal's executor
+        self._execution_interrupted = ""           # why a reset ended it
+        self._execute_lock = threading.Lock()      # one Execute goal at a time
 
         self.pub_rgb = self.create_publisher(Image, "/lomanip/camera/rgb/image_raw", SENSOR)
         self.pub_depth = self.create_publisher(Image, "/lomanip/camera/depth/image_raw", SENSOR)
@@ -88,6 +103,10 @@ class SimNode(Node):
         services = ReentrantCallbackGroup()
         self.create_service(ResetScenario, "/lomanip/sim/reset", self._on_reset, callback_group=services)
         self.create_service(GetRGBDFrame, "/lomanip/sim/get_rgbd_frame", self._on_snapshot, callback_group=services)
+        self._execute_server = ActionServer(self, Execute, "/lomanip/sim/execute", self._on_execute,
+                                            goal_callback=lambda _g: GoalResponse.ACCEPT,
+                                            cancel_callback=lambda _g: CancelResponse.ACCEPT,
+                                            callback_group=ReentrantCallbackGroup())
 
         self._publish_scene()
         self._physics = threading.Thread(target=self._physics_loop, name="physics", daemon=True)
@@ -247,9 +266,12 @@ class SimNode(Node):
             response.error_code = ErrorCode(val=code, message=str(exc))
             self.get_logger().warning(f"reset refused: {exc}")
             return response
-        self._reset_waiting.set()
         try:
-            with self._world_lock:
+            with self._world():
+                if self._execution is not None:   # a reset ends a running execution first
+                    self._execution_interrupted = "interrupted by a scenario reset"
+                    self._execution = None
+                    self.sim.set_controller(None)
                 self.sim.reset(params)
                 self.params = params
                 self._camera_generation += 1
@@ -257,8 +279,6 @@ class SimNode(Node):
             response.error_code = ErrorCode(val=ErrorCode.INVALID_REQUEST, message=f"cannot build world: {exc}")
             self.get_logger().error(response.error_code.message)
             return response
-        finally:
-            self._reset_waiting.clear()
         self._publish_scene()
         response.scene = conv.scene_objects_msg(self.get_clock().now().to_msg(), params.name, params.to_yaml(),
                                                 self.sim.scene_objects())
@@ -280,6 +300,97 @@ class SimNode(Node):
         response.error_code = ErrorCode(val=ErrorCode.SUCCESS, message="")
         return response
 
+    @contextlib.contextmanager
+    def _world(self):
+        """The world lock for a non-physics thread; the physics loop stands aside while it waits."""
+        with self._waiters_lock:
+            self._waiters += 1
+            self._reset_waiting.set()
+        try:
+            with self._world_lock:
+                yield
+        finally:
+            with self._waiters_lock:
+                self._waiters -= 1
+                if self._waiters == 0:
+                    self._reset_waiting.clear()
+
+    # --- Execute action ------------------------------------------------------------------------
+    def _on_execute(self, goal_handle):
+        """Check the trajectory, hand the robot to the WBC, report at ~10 Hz until done/cancelled."""
+        result = Execute.Result()
+        if not self._execute_lock.acquire(blocking=False):
+            result.error_code = ErrorCode(val=ErrorCode.BUSY, message="another trajectory is being executed")
+            goal_handle.abort()
+            return result
+        try:
+            return self._execute(goal_handle, result)
+        finally:
+            self._execute_lock.release()
+
+    def _execute(self, goal_handle, result):
+        log = self.get_logger()
+        try:
+            traj = conv.trajectory_from_msg(goal_handle.request.trajectory)
+            with self._world():   # checks against the CURRENT state, then the WBC takes over
+                ex = Execution(self.sim, traj)
+                ex.start()
+                self._execution, self._execution_interrupted = ex, ""
+        except Exception as exc:  # noqa: BLE001  (every failure becomes a coded result)
+            err = execution_error(exc)
+            if not isinstance(exc, TrajectoryError):
+                log.error(f"execute: {exc!r}")
+            result.error_code = ErrorCode(val=err.code, message=err.message)
+            log.warning(f"execute refused: {err.message}")
+            goal_handle.abort()
+            return result
+        log.info(f"executing {traj.scenario or 'a'} trajectory: {traj.n} points, {traj.duration:.2f} s")
+        feedback = Execute.Feedback()
+        try:
+            while True:
+                time.sleep(0.1)
+                if self._execution is not ex:   # a reset took the robot away
+                    ex.metrics = None
+                    result.error_code = ErrorCode(val=ErrorCode.EXECUTION_FAILED, message=self._execution_interrupted)
+                    goal_handle.abort()
+                    return result
+                if goal_handle.is_cancel_requested or self._stop.is_set():
+                    with self._world():
+                        ex.stop()
+                        metrics = ex.finish(cancelled=True)
+                    result.metrics = conv.execution_metrics_msg(metrics)
+                    result.error_code = ErrorCode(val=ErrorCode.CANCELLED,
+                                                  message=f"cancelled at t={ex.time:.2f} s; the standing controller holds")
+                    goal_handle.canceled()
+                    log.info(result.error_code.message)
+                    return result
+                st = ex.wbc.status
+                feedback.time_from_start = float(min(ex.time, traj.duration))
+                feedback.progress = ex.progress
+                feedback.base_position_error = float(st.base_position_error)
+                feedback.joint_error_rms = float(st.joint_error_rms)
+                goal_handle.publish_feedback(feedback)
+                if ex.done:
+                    break
+            with self._world():
+                metrics = ex.finish()
+                ex.stop()   # the standing controller holds the final posture
+            result.metrics = conv.execution_metrics_msg(metrics)
+            if metrics.fell:
+                result.error_code = ErrorCode(val=ErrorCode.EXECUTION_FAILED,
+                                              message=f"the robot fell at t={ex.time:.2f} s")
+                goal_handle.abort()
+            else:
+                result.error_code = ErrorCode(val=ErrorCode.SUCCESS, message=metrics.task_success_detail)
+                goal_handle.succeed()
+            log.info(f"execution finished: task success {metrics.task_success}, fell {metrics.fell}, "
+                     f"RTF {metrics.real_time_factor:.2f}; {metrics.task_success_detail}")
+            return result
+        finally:
+            with self._world():
+                if self._execution is ex:
+                    self._execution = None
+
     def shutdown(self) -> None:
         self._stop.set()
         self._physics.join(timeout=2.0)
@@ -291,7 +402,7 @@ def main(argv: list[str] | None = None) -> int:
     node = None
     try:
         node = SimNode()
-        executor = MultiThreadedExecutor(num_threads=3)
+        executor = MultiThreadedExecutor(num_threads=4)
         executor.add_node(node)
         executor.spin()
     except (ScenarioError, ValueError) as exc:

@@ -153,12 +153,8 @@ def check_joint_names(names) -> np.ndarray:
     return np.array([names.index(j) for j in G1_JOINT_NAMES])
 
 
-def make_trajectory(t, joint_names, q, qd, base_pos, base_quat_wxyz, base_linvel=None, base_angvel=None, *,
-                    phases=(), forces=None, torques=None, objects=None, scenario: str = "",
-                    robot_name: str = ROBOT_NAME) -> Trajectory:  # fmt: skip
-    """Check and build a Trajectory (joint columns reordered into G1 order). Raises TrajectoryError."""
-    if robot_name and robot_name != ROBOT_NAME:
-        raise TrajectoryError(INVALID_TRAJECTORY, f"trajectory is for robot {robot_name!r}, this sim runs {ROBOT_NAME!r}")
+def check_time_grid(t) -> np.ndarray:
+    """The time grid as floats: at least 2 points, finite, starts at 0, strictly increasing."""
     t = np.asarray(t, dtype=float).reshape(-1)
     n = len(t)
     if n < 2:
@@ -172,6 +168,17 @@ def make_trajectory(t, joint_names, q, qd, base_pos, base_quat_wxyz, base_linvel
                               f"follows t={t[i - 1]:.4f} s")
     if abs(t[0]) > 1e-6:
         raise TrajectoryError(INVALID_TRAJECTORY, f"time grid must start at 0, starts at {t[0]:.4f} s")
+    return t
+
+
+def make_trajectory(t, joint_names, q, qd, base_pos, base_quat_wxyz, base_linvel=None, base_angvel=None, *,
+                    phases=(), forces=None, torques=None, objects=None, scenario: str = "",
+                    robot_name: str = ROBOT_NAME) -> Trajectory:  # fmt: skip
+    """Check and build a Trajectory (joint columns reordered into G1 order). Raises TrajectoryError."""
+    if robot_name and robot_name != ROBOT_NAME:
+        raise TrajectoryError(INVALID_TRAJECTORY, f"trajectory is for robot {robot_name!r}, this sim runs {ROBOT_NAME!r}")
+    t = check_time_grid(t)
+    n = len(t)
     order = check_joint_names(joint_names)
     q = _arr(q, (len(order),), n, "joint positions")[:, order]
     qd = _arr(qd, (len(order),), n, "joint velocities")[:, order] if qd is not None else np.gradient(q, t, axis=0)
