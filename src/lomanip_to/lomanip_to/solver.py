@@ -179,6 +179,7 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
     stages = stages if stages is not None else homotopy_stages(opt)
     status, sol = "", None
     lam_x = lam_g = None
+    warm_ok = lam is not None  # multipliers handed in by the caller come from converged solves
     if lam is not None:
         lam_x, lam_g = lam
     for si, (expo, hard, pen, hom) in enumerate(stages):
@@ -192,11 +193,17 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
                 o["max_iter"] = min(int(o["max_iter"]), GUIDE_STAGE_MAX_ITER)
                 o["acceptable_iter"] = 3
                 tag = "guide"
-        else:
+        elif lam_x is not None and warm_ok:
+            # the previous stage converged: primal-dual warm start with a small barrier
             args["x0"] = np.clip(z0, args["lbx"], args["ubx"])
-            if lam_x is not None:
-                args["lam_x0"], args["lam_g0"] = lam_x, lam_g
+            args["lam_x0"], args["lam_g0"] = lam_x, lam_g
             o, tag = _warm_options(base), "warm"
+        else:
+            # the previous stage stopped early (the capped surrogate guide): its multipliers are not
+            # near optimal, and a primal-dual warm start with a small barrier then crawls along the
+            # bounds for hundreds of iterations; hand over the primal point only, barrier from scratch
+            args["x0"] = np.clip(z0, args["lbx"], args["ubx"])
+            o, tag = dict(base), "main"
         nlp, s = get_solver(wd, data.structure, K, o, threads, tag)
         kind = "surrogate guide" if not last_stage else "final"
         stage_name = f"{label}{kind}"
@@ -210,6 +217,7 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
         dt = time.perf_counter() - t0
         st = s.stats()
         status = st.get("return_status", "")
+        warm_ok = _converged(status)
         run.stages.append({"stage": stage_name, "exponent": expo, "hard": hard, "status": status,
                            "iterations": int(st.get("iter_count", 0)), "time": dt})
         z0 = np.array(sol["x"]).ravel()
