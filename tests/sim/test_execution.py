@@ -1,0 +1,93 @@
+"""execution: checks before anything moves, a real TO plan executed with logs/metrics, cancel, fall."""
+
+import numpy as np
+import pytest
+from to_cases import simulation, solved, trajectory
+
+from lomanip_sim.execution import Execution, ExecutionOptions, execution_error
+from lomanip_sim.standing import StandingController
+from lomanip_sim.trajectory import EXECUTION_FAILED, INVALID_TRAJECTORY, TrajectoryError, make_trajectory
+
+
+def test_stand_plan_metrics_and_logs():
+    sim, tr = simulation("case_stand")
+    ex = Execution(sim, tr)
+    feedback = []
+    m = ex.run(on_feedback=lambda e: feedback.append(e.progress))
+    assert m.task_success and not m.fell and not m.cancelled, m.task_success_detail
+    assert m.duration == pytest.approx(tr.duration + ex.opt.settle_time, abs=0.03)
+    assert m.max_base_position_error < 0.005 and m.rms_base_position_error <= m.max_base_position_error
+    assert m.max_joint_error < 0.03 and m.qp_failures == 0
+    assert m.real_time_factor > 0.3  # unpaced; ~1.8 on an idle core, shared 2-core CI is slower
+    assert feedback[-1] == pytest.approx(1.0) and feedback == sorted(feedback)
+    lg = ex.log
+    n = len(lg.t)
+    assert n == pytest.approx(m.duration * ex.opt.log_rate, abs=2)
+    assert len(lg.qpos) == n and all(len(lg.measured[l]) == n for l in lg.measured)
+    # the feet carry the robot's weight in the measured log
+    fz = np.array(lg.measured["left_foot"])[:, 2] + np.array(lg.measured["right_foot"])[:, 2]
+    assert np.all(fz[5:] > 250.0)
+
+
+def test_refused_before_anything_moves():
+    sim, tr = simulation("case_stand")
+    far = make_trajectory(tr.t, _names(), tr.q, tr.qd, tr.base_pos + [0.5, 0.0, 0.0], tr.base_quat)
+    before = sim.robot_qpos()
+    with pytest.raises(TrajectoryError) as e:
+        Execution(sim, far)
+    assert e.value.code == INVALID_TRAJECTORY and "starts 0.50 m" in e.value.message
+    assert sim.controller is sim.standing and sim.time == 0.0
+    np.testing.assert_array_equal(sim.robot_qpos(), before)
+
+
+def test_cancel_hands_over_to_standing():
+    sim, tr = simulation("case_one_step")
+    ex = Execution(sim, tr)
+    m = ex.run(should_cancel=lambda: ex.time > 0.3)
+    assert m.cancelled and not m.task_success and not m.fell
+    assert isinstance(sim.controller, StandingController)
+    sim.run_for(1.5)
+    assert not sim.has_fallen() and sim.pelvis_height() > 0.7
+
+
+def test_fall_is_detected_and_stops():
+    sim, tr = simulation("case_stand")
+    ex = Execution(sim, tr, options=ExecutionOptions(settle_time=3.0))
+    ex.start()
+    sim.run_for(0.2)
+    sim.apply_external_force("pelvis", (600.0, 0.0, 0.0), 0.3)  # 180 N s: nobody stands that
+    m = ex.run()
+    assert m.fell and not m.task_success and "robot fell" in m.task_success_detail
+    assert isinstance(sim.controller, StandingController)
+
+
+def test_message_round_trip_matches_direct_conversion():
+    from builtin_interfaces.msg import Time
+    from lomanip_to import conversions as to_conv
+
+    from lomanip_sim import conversions
+
+    res, prob = solved("case_one_step")
+    msg = to_conv.trajectory_msg(res, prob.phases, "case_one_step", Time())
+    a, b = conversions.trajectory_from_msg(msg), trajectory("case_one_step")
+    np.testing.assert_allclose(a.t, b.t, atol=1e-8)
+    np.testing.assert_allclose(a.q, b.q, atol=1e-9)
+    np.testing.assert_allclose(a.base_quat, b.base_quat, atol=1e-9)
+    np.testing.assert_allclose(a.base_angvel, b.base_angvel, atol=1e-9)
+    assert [sorted(p.contacts) for p in a.phases] == [sorted(p.contacts) for p in b.phases]
+    for limb in b.forces:
+        np.testing.assert_allclose(a.forces.get(limb, np.zeros_like(b.forces[limb])), b.forces[limb], atol=1e-9)
+    msg.base_trajectory.points.pop()
+    with pytest.raises(TrajectoryError, match="one time grid"):
+        conversions.trajectory_from_msg(msg)
+
+
+def test_execution_error_wraps_unexpected():
+    e = execution_error(RuntimeError("boom"))
+    assert e.code == EXECUTION_FAILED and "boom" in e.message
+
+
+def _names():
+    from lomanip_sim.robot_model import G1_JOINT_NAMES
+
+    return G1_JOINT_NAMES
