@@ -160,6 +160,16 @@ class TOResult:
         self.penetration = np.interp(t, tk, self.penetration_knots)
         return self
 
+    def save(self, path) -> None:
+        """Write the knot data, names and solver statistics to ``path`` (.npz, no pickles).  The
+        dense grid is not stored: :meth:`load` rebuilds it with :meth:`densify` at the same rate."""
+        _save(self, path)
+
+    @staticmethod
+    def load(path) -> "TOResult":
+        """Read a result written by :meth:`save` (densified, ``data`` is not restored)."""
+        return _load(path)
+
     def summary(self) -> dict:
         s = asdict(self.stats)
         s["duration"] = float(self.t_knots[-1])
@@ -172,6 +182,55 @@ class TOResult:
              "object_pose_knots": {k: v.tolist() for k, v in self.object_pose_knots.items()},
              "forces_knots": {k: v.tolist() for k, v in self.forces_knots.items()}}
         return json.dumps(d)
+
+
+#: TOResult fields saved by :meth:`TOResult.save` (knot data; the dense grid is rebuilt on load)
+_KNOT_ARRAYS = ("t_knots", "x_knots", "xd_knots", "com_knots", "h_knots", "penetration_knots")
+_KNOT_DICTS = ("forces_knots", "torques_knots", "points_knots", "corner_forces_knots", "object_pose_knots",
+               "object_vel_knots", "normals_knots")
+_FORMAT = "lomanip_to.TOResult/1"
+
+
+def _save(res: TOResult, path) -> None:
+    arrays = {f"a/{k}": np.asarray(getattr(res, k), float) for k in _KNOT_ARRAYS}
+    for name in _KNOT_DICTS:
+        for key, v in (getattr(res, name) or {}).items():
+            arrays[f"d/{name}/{key}"] = np.asarray(v, float)
+    rate = 100.0
+    if res.t is not None and len(res.t) > 1:
+        rate = float(round(1.0 / (res.t[1] - res.t[0]), 6))
+    meta = {"format": _FORMAT, "joint_names": list(res.joint_names), "limbs": list(res.limbs),
+            "object_ids": list(res.object_ids), "output_rate": rate,
+            "contact_objects_knots": {k: list(v) for k, v in res.contact_objects_knots.items()},
+            "stats": asdict(res.stats)}
+    arrays["meta"] = np.array(json.dumps(meta, default=_json_default))
+    with open(path, "wb") as fh:  # a file object: np.savez would otherwise append ".npz"
+        np.savez_compressed(fh, **arrays)
+
+
+def _load(path) -> TOResult:
+    with np.load(path, allow_pickle=False) as z:
+        meta = json.loads(str(z["meta"]))
+        if meta.get("format") != _FORMAT:
+            raise ValueError(f"{path}: not a saved TOResult (format {meta.get('format')!r})")
+        kw = {k: z[f"a/{k}"] for k in _KNOT_ARRAYS}
+        for name in _KNOT_DICTS:
+            pre = f"d/{name}/"
+            kw[name] = {k[len(pre):]: z[k] for k in z.files if k.startswith(pre)}
+    st = dict(meta["stats"])
+    for v in ("max_dynamics_violation", "max_contact_violation", "max_constraint_violation"):
+        st[v] = Violation(**st[v])
+    res = TOResult(joint_names=meta["joint_names"], limbs=meta["limbs"], object_ids=meta["object_ids"],
+                   contact_objects_knots=meta["contact_objects_knots"], stats=SolverStats(**st), **kw)
+    return res.densify(meta["output_rate"])
+
+
+def _json_default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    return str(o)
 
 
 def _hermite(tk: np.ndarray, Y: np.ndarray, t: np.ndarray):
