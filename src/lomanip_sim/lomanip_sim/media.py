@@ -1,4 +1,4 @@
-"""Pictures of an executed run: MP4 video, PNG frames, tracking-error and contact-force plots.
+"""Pictures of an executed run: video (MP4, or GIF without an MP4 encoder), PNG frames, plots.
 
 Why: a run must be checked by eye, not only by numbers. The video is rendered offscreen AFTER the
 run from the full-world qpos that the executor recorded at its log rate during the physics run
@@ -42,13 +42,26 @@ def render_frames(model, qpos_frames: list[np.ndarray], width: int = 640, height
             yield r.render().copy()
 
 
+def mp4_available() -> bool:
+    """True when imageio can encode MP4 (its ffmpeg plugin, package imageio-ffmpeg, is installed)."""
+    import importlib.util
+
+    return importlib.util.find_spec("imageio_ffmpeg") is not None
+
+
 def save_video(path: Path, model, qpos_frames, fps: float, width: int = 640, height: int = 480) -> Path:
+    """MP4 when an encoder is installed, else an animated GIF (Pillow) next to ``path``; returns the file."""
     import imageio.v2 as imageio
 
     path = Path(path)
-    with imageio.get_writer(path, fps=fps, codec="libx264", quality=7, macro_block_size=8) as w:
-        for frame in render_frames(model, qpos_frames, width, height):
-            w.append_data(frame)
+    if path.suffix == ".mp4" and mp4_available():
+        with imageio.get_writer(path, fps=fps, codec="libx264", quality=7, macro_block_size=8) as w:
+            for frame in render_frames(model, qpos_frames, width, height):
+                w.append_data(frame)
+        return path
+    path = path.with_suffix(".gif")
+    frames = list(render_frames(model, qpos_frames, width, height))
+    imageio.mimsave(path, frames, duration=1000.0 / fps, loop=0)  # duration per frame in ms
     return path
 
 
@@ -113,8 +126,10 @@ def save_run(out_dir: Path, execution, name: str, video: bool = True) -> dict:
     files["plots"] = [str(p) for p in save_plots(out_dir, lg, name)]
     if video and lg.qpos:
         fps = execution.opt.log_rate
-        step = max(1, int(round(fps / 25.0)))  # ~25 fps video from the log
-        files["video"] = str(save_video(out_dir / "run.mp4", model, lg.qpos[::step], fps / step))
+        mp4 = mp4_available()
+        step = max(1, int(round(fps / (25.0 if mp4 else 12.5))))  # ~25 fps MP4, ~12.5 fps GIF (smaller)
+        size = (640, 480) if mp4 else (400, 300)
+        files["video"] = str(save_video(out_dir / "run.mp4", model, lg.qpos[::step], fps / step, *size))
         files["frames"] = [str(p) for p in save_png_frames(out_dir, model, lg.qpos, lg.t)]
     metrics = execution.metrics.as_dict() if execution.metrics else {}
     (out_dir / "metrics.json").write_text(json.dumps({"name": name, "metrics": metrics, "files": files}, indent=2))
