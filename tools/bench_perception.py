@@ -88,19 +88,39 @@ def pipelines(cfg: dict, outlier: float, depth_err: float, methods) -> dict[str,
     return out
 
 
-def stats(errs: list[float]) -> dict:
+MIRROR = {"left_hand": "right_hand", "right_hand": "left_hand", "left_foot": "right_foot", "right_foot": "left_foot"}
+
+
+def is_flip(e, errs, min_separation: float = 0.10) -> bool:
+    """A left/right flip: the contact landed nearer the mirror limb's true contact than its own (only
+    where the two true contacts are at least ``min_separation`` apart on the same object)."""
+    other = next((o for o in errs if o.limb == MIRROR.get(e.limb) and o.object_id == e.object_id), None)
+    if other is None or np.linalg.norm(e.truth - other.truth) < min_separation:
+        return False
+    return bool(np.linalg.norm(e.predicted - other.truth) < np.linalg.norm(e.predicted - e.truth))
+
+
+def stats(errs: list[float], flips: list[bool] | None = None) -> dict:
     a = np.asarray(errs, float)
     if a.size == 0:
-        return {"n": 0, "median_cm": float("nan"), "p90_cm": float("nan")}
-    return {"n": int(a.size), "median_cm": float(np.median(a) * 100), "p90_cm": float(np.percentile(a, 90) * 100)}
+        return {"n": 0, "median_cm": float("nan"), "p90_cm": float("nan"), "over6_pct": float("nan"),
+                "over15_pct": float("nan"), "flip_pct": float("nan")}
+    return {"n": int(a.size), "median_cm": float(np.median(a) * 100), "p90_cm": float(np.percentile(a, 90) * 100),
+            "over6_pct": float((a > 0.06).mean() * 100), "over15_pct": float((a > 0.15).mean() * 100),
+            "flip_pct": float(np.mean(flips) * 100) if flips else float("nan")}
 
 
-def draw_sample(path: Path, demo, pose_uv: dict, scene, results: dict, truths: dict) -> None:
-    """R_g with the estimated contact keypoints | R_s with transferred (aware: green, unaware: red)
-    and true (white ring) contacts."""
+SHORT = {"left_hand": "LH", "right_hand": "RH", "left_foot": "LF", "right_foot": "RF"}
+
+
+def draw_sample(path: Path, demo, pose_uv: dict, scene, results: dict, truths: dict, caption: str = "") -> np.ndarray:
+    """R_g with its true contacts (yellow, labelled) | R_s with transferred (geometry-aware: green,
+    geometry-unaware: red) and true (white ring) contacts. Writes ``path``, returns the BGR image."""
     left = np.ascontiguousarray(demo.rgb[..., ::-1])
-    for uv in pose_uv.values():
+    for limb, uv in pose_uv.items():
         cv2.circle(left, (int(uv[0]), int(uv[1])), 14, (0, 255, 255), 4)
+        cv2.putText(left, SHORT.get(limb, limb), (int(uv[0]) + 16, int(uv[1]) - 10), cv2.FONT_HERSHEY_SIMPLEX, 1.4,
+                    (0, 255, 255), 3, cv2.LINE_AA)  # fmt: skip
     left = cv2.resize(left, (480, 480), interpolation=cv2.INTER_AREA)
     img = np.ascontiguousarray(scene.image.rgb[..., ::-1]).copy()
     cam, pose = scene.image.camera, scene.image.camera_pose
@@ -113,9 +133,80 @@ def draw_sample(path: Path, demo, pose_uv: dict, scene, results: dict, truths: d
     for m, pts in results.items():
         for p in pts.values():
             cv2.circle(img, px(p), 4, colours.get(m, (200, 200, 0)), -1)
-    scale = 480 / img.shape[0]
-    img = cv2.resize(img, (int(img.shape[1] * scale), 480), interpolation=cv2.INTER_AREA)
-    cv2.imwrite(str(path), np.hstack([left, img]))
+    # crop R_s around the contacts (at least 240 px, 4:3) so they are readable beside R_g
+    pts = np.array([px(p) for p in truths.values()] + [px(p) for pts in results.values() for p in pts.values()])
+    H, W = img.shape[:2]
+    c = pts.mean(0) if len(pts) else np.array([W / 2, H / 2])
+    half = max(120, 0.5 * float(np.ptp(pts, 0).max()) + 70) if len(pts) else H / 2
+    hw, hh = min(W / 2, half * 4 / 3), min(H / 2, half)
+    x0, y0 = int(np.clip(c[0] - hw, 0, W - 2 * hw)), int(np.clip(c[1] - hh, 0, H - 2 * hh))
+    img = img[y0:y0 + int(2 * hh), x0:x0 + int(2 * hw)]
+    img = cv2.resize(img, (int(img.shape[1] * 480 / img.shape[0]), 480), interpolation=cv2.INTER_CUBIC)
+    out = np.hstack([left, img])
+    text = [(caption, (255, 255, 255)), ("generated demo R_g (synthetic) | scene R_s: green aware, red unaware, "
+                                         "white ring truth", (220, 220, 220))]  # fmt: skip
+    out = np.vstack([np.zeros((48, out.shape[1], 3), np.uint8), out])  # caption banner
+    for k, (t, colour) in enumerate(text):
+        cv2.putText(out, t, (8, 20 + 20 * k), cv2.FONT_HERSHEY_SIMPLEX, 0.55, colour, 1, cv2.LINE_AA)
+    cv2.imwrite(str(path), out)
+    return out
+
+
+def figure(path: Path, rows: list[np.ndarray], row_height: int = 300) -> None:
+    """Stack sample images (one per class) into one PNG figure for the README (< 1 MB at 300 px rows)."""
+    if not rows:
+        return
+    rs = [cv2.resize(r, (int(r.shape[1] * row_height / r.shape[0]), row_height), interpolation=cv2.INTER_AREA)
+          for r in rows]  # fmt: skip
+    w = max(r.shape[1] for r in rs)
+    rs = [np.pad(r, ((0, 4), (0, w - r.shape[1]), (0, 0))) for r in rs]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(path), np.vstack(rs), [cv2.IMWRITE_PNG_COMPRESSION, 9])
+
+
+def measure_startup(config_file: str | None, timeout: float = 90.0) -> dict:
+    """Start the perception node as a process (LOCALHOST discovery, own domain id): wall time from
+    spawn to its 'ready' log line (offline default), or to its exit (a backend that cannot load),
+    whether libtorch is mapped into the process, and its last log line."""
+    import os
+    import signal
+    import subprocess
+    import tempfile
+
+    paths = [str(ROOT / p) for p in ("src/lomanip_sim", "src/lomanip_perception")]
+    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "ROS_DOMAIN_ID": str(150 + os.getpid() % 80),
+           "PYTHONPATH": os.pathsep.join(paths + [os.environ.get("PYTHONPATH", "")]),
+           "HF_HUB_CACHE": tempfile.mkdtemp(prefix="empty_hf_cache_")}  # "without weights", whatever this host has
+    cmd = [sys.executable, "-m", "lomanip_perception.perception_node"]
+    if config_file:
+        cmd += ["--ros-args", "-p", f"config_file:={config_file}"]
+    t0 = time.monotonic()
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)  # fmt: skip
+    lines, ready, torch_loaded = [], None, None
+    try:
+        for line in proc.stdout:
+            lines.append(line.rstrip())
+            if "ready in" in line:
+                ready = time.monotonic() - t0
+                maps = Path(f"/proc/{proc.pid}/maps").read_text()
+                torch_loaded = "libtorch" in maps
+                break
+            if time.monotonic() - t0 > timeout:
+                break
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGINT)
+            try:
+                proc.wait(15)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait(5)
+    end = time.monotonic() - t0
+    return {"config": config_file or "default (config/perception.yaml)", "ready_s": ready,
+            "exit_s": None if ready else end, "returncode": proc.returncode if not ready else None,
+            "libtorch_loaded": torch_loaded, "last_line": lines[-1] if lines else "",
+            "role_lines": [ln.split("]: ", 1)[-1] for ln in lines if "]: role " in ln]}
 
 
 def main() -> int:
@@ -124,6 +215,9 @@ def main() -> int:
     ap.add_argument("--grid", choices=["cross", "full"], default="cross")
     ap.add_argument("--classes", default=",".join(CLASS_TASKS))
     ap.add_argument("--samples", type=int, default=2, help="sample images per class")
+    ap.add_argument("--no-startup", action="store_true", help="skip the node start-up measurement")
+    ap.add_argument("--docs-figure", default="", help="also write the contact-transfer figure here (e.g. "
+                                                      "docs/img/contact_transfer.png)")
     ap.add_argument("--out", default=str(ROOT / "runs" / "bench_perception" / datetime.now().strftime("%Y%m%d-%H%M%S")))
     args = ap.parse_args()
     out = Path(args.out)
@@ -141,6 +235,17 @@ def main() -> int:
     rows = []  # per contact
     runtime = []  # per subtask, aware similarity at the acceptance point
     failures = []
+    startup = []
+    if not args.no_startup:
+        for cfg_file in (None, str(ROOT / "src/lomanip_perception/config/paper_models.yaml")):
+            r = measure_startup(cfg_file)
+            startup.append(r)
+            print(f"  node start-up, {r['config']}: " + (f"ready after {r['ready_s']:.2f} s (spawn to 'ready' log), "
+                  f"libtorch mapped: {r['libtorch_loaded']}" if r["ready_s"] else
+                  f"exited {r['returncode']} after {r['exit_s']:.2f} s: {r['last_line']}"), flush=True)  # fmt: skip
+            for ln in r["role_lines"]:
+                print(f"    {ln}")
+    fig_rows = []
     for cls in classes:
         n_samples = 0
         for i in range(args.demos):
@@ -162,14 +267,15 @@ def main() -> int:
                                          "error": f"{type(exc).__name__}: {exc}"})  # fmt: skip
                         continue
                     if m == "aware_similarity" and g == ACCEPT:
-                        runtime.append({"transfer_s": res.timings["contact_transfer"],
+                        runtime.append({**{f"{k}_s": v for k, v in res.timings.items() if k != "image_generation"},
+                                        "transfer_s": res.timings["contact_transfer"],
                                         "perception_s": sum(v for k, v in res.timings.items() if k != "image_generation"),
                                         "generation_s": t_gen})  # fmt: skip
-                    for e in contact_errors(res, demo, scene):
-                        if e.object_id not in ids:
-                            continue
+                    errs = [e for e in contact_errors(res, demo, scene) if e.object_id in ids]
+                    for e in errs:
                         rows.append({"class": cls, "demo": i, "prompt": prompt, "outlier": g[0], "depth_err": g[1],
-                                     "method": m, "limb": e.limb, "error_m": e.error, "error_raw_m": e.error_raw})
+                                     "method": m, "limb": e.limb, "error_m": e.error, "error_raw_m": e.error_raw,
+                                     "flip": is_flip(e, errs)})
                         if g == ACCEPT and m in ("aware_similarity", "unaware"):
                             sample_pts.setdefault(m, {})[e.limb] = e.predicted
                             truths[e.limb] = e.truth
@@ -177,7 +283,10 @@ def main() -> int:
                     gt = demo.ground_truth
                     uv = {c.limb: gt.camera.project(gt.camera_pose.inverse_apply(c.point))[0] for c in gt.contacts
                           if c.object_name in gt.names_of_class(cls)}  # fmt: skip
-                    draw_sample(out / "samples" / f"{cls}_{i:02d}.png", demo, uv, scene, sample_pts, truths)
+                    img = draw_sample(out / "samples" / f"{cls}_{i:02d}.png", demo, uv, scene, sample_pts, truths,
+                                      f"{cls}: '{prompt}' ({scen}), {ACCEPT[0]:.0%} outliers, {ACCEPT[1]:.0%} depth scale")
+                    if n_samples == 0:
+                        fig_rows.append(img)
                     n_samples += 1
             if (i + 1) % 10 == 0:
                 print(f"  {cls}: {i + 1}/{args.demos} demos ({time.perf_counter() - t0:.0f} s)", flush=True)
@@ -185,10 +294,14 @@ def main() -> int:
     def sel(**kw):
         return [r["error_m"] for r in rows if all(r[k] == v for k, v in kw.items())]
 
+    def sel_flip(**kw):
+        return [r["flip"] for r in rows if all(r[k] == v for k, v in kw.items())]
+
     table = []
     for g in grid:
         for m in pipes[g]:
-            table.append({"outlier": g[0], "depth_err": g[1], "method": m, **stats(sel(outlier=g[0], depth_err=g[1], method=m))})
+            kw = {"outlier": g[0], "depth_err": g[1], "method": m}
+            table.append({**kw, **stats(sel(**kw), sel_flip(**kw))})
     per_class = []
     for cls in classes:
         for m in METHODS:
@@ -199,9 +312,11 @@ def main() -> int:
     gt_ = np.array([r["generation_s"] for r in runtime]) if runtime else np.zeros(1)
 
     print("\nContact position error (cm), all classes; n = contacts scored")
-    print(f"{'outliers':>8} {'depth err':>9}  {'method':<17} {'n':>5} {'median':>7} {'p90':>7}")
+    print(f"{'outliers':>8} {'depth err':>9}  {'method':<17} {'n':>5} {'median':>7} {'p90':>7} {'>6cm%':>6} "
+          f"{'>15cm%':>6} {'flip%':>6}")  # fmt: skip
     for r in table:
-        print(f"{r['outlier']:>8.0%} {r['depth_err']:>9.0%}  {r['method']:<17} {r['n']:>5} {r['median_cm']:>7.2f} {r['p90_cm']:>7.2f}")
+        print(f"{r['outlier']:>8.0%} {r['depth_err']:>9.0%}  {r['method']:<17} {r['n']:>5} {r['median_cm']:>7.2f} "
+              f"{r['p90_cm']:>7.2f} {r['over6_pct']:>6.1f} {r['over15_pct']:>6.1f} {r['flip_pct']:>6.1f}")  # fmt: skip
     print(f"\nPer class at {ACCEPT[0]:.0%} outliers, {ACCEPT[1]:.0%} depth scale error (median / p90, cm)")
     for r in per_class:
         print(f"  {r['class']:<8} {r['method']:<17} n={r['n']:>4}  {r['median_cm']:6.2f} / {r['p90_cm']:6.2f}")
@@ -217,6 +332,9 @@ def main() -> int:
     print(f"Runtime per subtask (geometry-aware): contact transfer median {np.median(rt):.2f} s, p90 "
           f"{np.percentile(rt, 90):.2f} s, max {rt.max():.2f} s (< 2 s: {'PASS' if np.median(rt) < 2 else 'FAIL'}); "
           f"all perception after generation median {np.median(pt):.2f} s; synthetic generation median {np.median(gt_):.2f} s")
+    stage_keys = [k for k in (runtime[0] if runtime else {}) if k not in ("transfer_s", "perception_s", "generation_s")]
+    print("Time per subtask by stage (median s, geometry-aware): " +
+          ", ".join(f"{k[:-2]} {np.median([r[k] for r in runtime]):.3f}" for k in stage_keys))
     print(f"Failed transfers: {len(failures)}" + "".join(f"\n  {f}" for f in failures[:10]))
     print(f"Total {time.perf_counter() - t0:.0f} s")
 
@@ -230,7 +348,11 @@ def main() -> int:
                        "unaware_over_aware_p90": ratio_p90},
         "runtime_s": {"transfer_median": float(np.median(rt)), "transfer_p90": float(np.percentile(rt, 90)),
                       "perception_median": float(np.median(pt)), "generation_median": float(np.median(gt_))},
-        "failures": failures}, indent=1))  # fmt: skip
+        "stage_median_s": {k[:-2]: float(np.median([r[k] for r in runtime])) for k in stage_keys},
+        "startup": startup, "failures": failures}, indent=1))  # fmt: skip
+    figure(out / "contact_transfer.png", fig_rows)
+    if args.docs_figure:
+        figure(Path(args.docs_figure), fig_rows)
     plot(out / "error_vs_outliers.png", table)
     print(f"Wrote {out}")
     return 0

@@ -172,3 +172,24 @@ def test_paper_model_file_without_weights_stops_the_node_with_one_line(tmp_path)
     assert len(lines) == 1 and lines[0].startswith("lomanip_perception: error: FLUX.1 (image_generator)"), r.stderr
     assert "models.image_generator.params.path" in lines[0] and "Traceback" not in r.stderr
     assert elapsed < 30.0
+
+
+def test_no_person_in_the_generated_image_is_named_and_the_node_keeps_serving(client, tmp_path):
+    """A generator whose image shows no person (the synthetic generator with with_person: false):
+    NO_HUMAN_FOUND naming the subtask, on every request, and the node stays up."""
+    from lomanip_msgs.msg import ErrorCode
+    from lomanip_msgs.srv import ExtractContacts
+
+    sim_log, perc_log = tmp_path / "sim.log", tmp_path / "perception.log"
+    overrides = '"{models: {image_generator: {params: {with_person: false, width: 256, height: 256}}}}"'  # a string
+    with ros_process(["-m", "lomanip_sim.sim_node", "--ros-args", "-p", "scenario:=s1_basket",
+                      "-p", "camera_rate:=2.0"], sim_log) as sim, \
+            ros_process(["-m", "lomanip_perception.perception_node", "--ros-args", "-p",
+                         f"config_overrides:={overrides}"], perc_log) as perc:  # fmt: skip
+        cli = client.create_client(ExtractContacts, "/lomanip/perception/extract_contacts")
+        wait_for(lambda: cli.service_is_ready(), 60, "extract_contacts service", proc=perc, log_path=perc_log)
+        for _ in range(2):
+            res = _call(client, cli, ExtractContacts.Request(prompts=["pick up the box", "grab the basket"]))
+            assert res.error_code.val == ErrorCode.NO_HUMAN_FOUND, res.error_code.message
+            assert res.error_code.message.startswith("subtask 0 'pick up the box': no person found")
+        assert sim.poll() is None and perc.poll() is None

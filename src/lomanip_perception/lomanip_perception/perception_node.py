@@ -151,7 +151,11 @@ class PerceptionNode(Node):
 
 
 def main(argv: list[str] | None = None) -> int:
-    rclpy.init(args=argv if argv is not None else sys.argv)
+    try:
+        rclpy.init(args=argv if argv is not None else sys.argv)
+    except Exception as exc:  # rcl's own argument errors (e.g. a -p value that is not valid YAML)
+        print(f"lomanip_perception: error: bad ROS arguments: {str(exc).splitlines()[0]}", file=sys.stderr, flush=True)
+        return 2
     try:
         node = PerceptionNode()
     except (PerceptionError, ValueError, yaml.YAMLError) as exc:
