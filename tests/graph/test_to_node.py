@@ -103,3 +103,21 @@ def test_bad_requests_get_codes_before_solving(to_node, client):
     res = _call(client, req, to_node, timeout=30)
     assert res.error_code.val == ErrorCode.INVALID_REQUEST and "overlap" in res.error_code.message
     assert to_node[0].poll() is None
+
+
+def test_progress_is_published_during_a_solve(to_node, client):
+    """/lomanip/to/progress: SolverStatistics per iteration (rate-limited) while the solve runs."""
+    from lomanip_msgs.msg import ErrorCode, SolverStatistics
+
+    got = []
+    sub = client.create_subscription(SolverStatistics, "/lomanip/to/progress", got.append, 50)
+    wait_for(lambda: client.count_publishers("/lomanip/to/progress") > 0, 30, "progress publisher",
+             spin=_spin(client))
+    res = _call(client, _request("case_stand"), to_node)
+    client.destroy_subscription(sub)
+    assert res.error_code.val == ErrorCode.SUCCESS, res.error_code.message
+    assert got, "no progress message during the solve"
+    its = [m.iterations for m in got]
+    assert its[0] >= 1 and its == sorted(its) and its[-1] <= res.trajectory.solver_statistics.iterations
+    assert all(not m.converged and m.status_message for m in got)
+    assert all(m.solve_time >= 0 and math.isfinite(m.cost) for m in got)

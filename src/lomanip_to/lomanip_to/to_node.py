@@ -4,6 +4,10 @@
   /lomanip/trajectory                   lomanip_msgs/WholeBodyTrajectory (reliable, transient local)
   /lomanip/trajectory/joint_trajectory  trajectory_msgs/JointTrajectory (29 G1 joints), same QoS
   /lomanip/trajectory/base_trajectory   trajectory_msgs/MultiDOFJointTrajectory ("floating_base"), same QoS
+  /lomanip/to/progress                  lomanip_msgs/SolverStatistics, during a solve (<= ~5 Hz):
+                                        iterations so far, cost = objective, max_dynamics_violation =
+                                        max constraint violation of the iterate, solve_time = elapsed
+                                        s, status_message = stage (e.g. "subtask 1 (3.0-11.4 s) final")
 
 Invalid input is answered with its error code before any solve. Only a solve that converged AND
 passed the physical-consistency checks is returned as a trajectory and published; a failed solve
@@ -23,11 +27,15 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from trajectory_msgs.msg import JointTrajectory, MultiDOFJointTrajectory
 
-from lomanip_msgs.msg import ErrorCode, WholeBodyTrajectory
+from lomanip_msgs.msg import ErrorCode, SolverStatistics, WholeBodyTrajectory
 from lomanip_msgs.srv import OptimizeTrajectory
 
 from . import conversions as conv
 from .problem import TO_NOT_CONVERGED, ProblemError
+
+#: progress messages are rate-limited to this period (s); a log line every LOG_EVERY iterations
+PROGRESS_PERIOD = 0.2
+LOG_EVERY = 25
 
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -47,6 +55,7 @@ class TONode(Node):
         self.pub_traj = self.create_publisher(WholeBodyTrajectory, "/lomanip/trajectory", LATCHED)
         self.pub_joint = self.create_publisher(JointTrajectory, "/lomanip/trajectory/joint_trajectory", LATCHED)
         self.pub_base = self.create_publisher(MultiDOFJointTrajectory, "/lomanip/trajectory/base_trajectory", LATCHED)
+        self.pub_progress = self.create_publisher(SolverStatistics, "/lomanip/to/progress", 10)
         self.create_service(OptimizeTrajectory, "/lomanip/to/optimize", self._on_optimize,
                             callback_group=ReentrantCallbackGroup())
 
@@ -74,7 +83,7 @@ class TONode(Node):
         log.info(f"optimising {problem.name or 'trajectory'}: {len(problem.keyframes)} keyframes, "
                  f"{len(problem.phases)} phases, {problem.duration:.1f} s")
         try:
-            result = solve(problem, self.model, threads=self.threads)
+            result = solve(problem, self.model, threads=self.threads, progress=self._progress_sink())
         except ProblemError as exc:
             response.error_code = ErrorCode(val=exc.code, message=exc.message)
             return response
@@ -94,6 +103,30 @@ class TONode(Node):
         self.pub_joint.publish(response.trajectory.joint_trajectory)
         self.pub_base.publish(response.trajectory.base_trajectory)
         return response
+
+
+    def _progress_sink(self):
+        """Per-iteration callback of one solve: publishes at most every PROGRESS_PERIOD s (the
+        first iteration always), logs every LOG_EVERY iterations.  Runs in the solving thread."""
+        last = [-1e9]
+        log = self.get_logger()
+
+        def sink(p) -> None:
+            if p.iteration % LOG_EVERY == 0:
+                log.info(p.text())
+            if p.elapsed - last[0] < PROGRESS_PERIOD:
+                return
+            last[0] = p.elapsed
+            self.pub_progress.publish(progress_msg(p))
+
+        return sink
+
+
+def progress_msg(p) -> SolverStatistics:
+    """lomanip_msgs/SolverStatistics of an in-progress solve (converged stays False)."""
+    return SolverStatistics(solver="ipopt (in progress)", converged=False, iterations=int(p.iteration),
+                            solve_time=float(p.elapsed), cost=float(p.objective),
+                            max_dynamics_violation=float(p.constraint_violation), status_message=p.stage)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,118 @@
+#!/usr/bin/env python3
+"""Whole-body TO benchmark on the paper's S1/S2 grid (issue 3; paper Sec. V-A and the V-C ablation).
+
+For every grid cell (box mass x box yaw, from the ``grid`` of lomanip_sim's scenarios.yaml) and
+every variant it builds the fixture problem (src/lomanip_to/config/s1_basket.yaml,
+s2_trolley.yaml), solves it and records: converged, success (converged AND the physical checks),
+iterations, build / solve wall time, peak resident memory of this process, max constraint
+violation, max penetration.  Variants (``Options`` switches):
+
+  all        AllKeyframe: keyframe base cost eq. (1), foot cost eq. (2), keyframe warm start
+  none       NoKeyframe: all three keyframe components off
+  no_base / no_foot / no_warm   one component removed (``--variants`` to select them)
+
+Each result is saved as runs/bench_to/<case>_<variant>.npz (``lomanip_to.result.TOResult.load``
+reads it back; the execution benchmark uses these files) and the table as
+runs/bench_to/summary.json.  Peak memory is the process maximum so far (ru_maxrss), so it only
+grows along the run.  Timings are on this machine (2 shared cores; expect them higher under load).
+
+  .venv/bin/python tools/bench_to.py                  # nominal S1 and S2, AllKeyframe + NoKeyframe
+  .venv/bin/python tools/bench_to.py --full           # the whole grid (hours)
+  .venv/bin/python tools/bench_to.py --scenarios s1_basket --variants all
+"""
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import sys
+import time
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parent.parent
+for pkg in ("src/lomanip_to", "src/lomanip_sim"):
+    sys.path.insert(0, str(ROOT / pkg))
+
+from lomanip_sim.scenario import default_scenarios_path  # noqa: E402
+from lomanip_to import solver  # noqa: E402
+from lomanip_to.fixtures import load_problem  # noqa: E402
+from lomanip_to.model import G1Model  # noqa: E402
+
+VARIANTS = {
+    "all": {},
+    "none": {"use_keyframe_base_cost": False, "use_keyframe_foot_cost": False, "use_keyframe_warm_start": False},
+    "no_base": {"use_keyframe_base_cost": False},
+    "no_foot": {"use_keyframe_foot_cost": False},
+    "no_warm": {"use_keyframe_warm_start": False},
+}
+SCENARIOS = ("s1_basket", "s2_trolley")
+COLUMNS = ("case", "variant", "converged", "success", "iterations", "build_s", "solve_s", "peak_mb",
+           "max_violation", "penetration_mm")
+
+
+def grid(scenario: str) -> list[dict]:
+    """The paper's grid of ``scenario`` as override dicts (cartesian product, YAML order)."""
+    with open(default_scenarios_path()) as fh:
+        g = yaml.safe_load(fh)["scenarios"][scenario].get("grid") or {}
+    keys = list(g)
+    return [dict(zip(keys, combo)) for combo in itertools.product(*(g[k] for k in keys))]
+
+
+def case_name(scenario: str, over: dict) -> str:
+    return scenario + "".join(f"_{k.replace('box_', '')}{v:g}" for k, v in over.items())
+
+
+def run_case(model, scenario: str, over: dict, variant: str, out: Path, time_limit: float | None) -> dict:
+    opts = dict(VARIANTS[variant])
+    if time_limit is not None:
+        opts["time_limit"] = time_limit
+    name = case_name(scenario, over)
+    t0 = time.perf_counter()
+    prob = load_problem(scenario, overrides=over, model=model, options=opts)
+    load_s = time.perf_counter() - t0
+    res = solver.solve(prob, model)
+    s = res.stats
+    res.save(out / f"{name}_{variant}.npz")
+    return {"case": name, "variant": variant, "overrides": over, "converged": s.converged, "success": res.success,
+            "iterations": s.iterations, "build_s": load_s + s.build_time, "solve_s": s.solve_time,
+            "peak_mb": s.peak_memory_mb, "max_violation": s.max_constraint_violation.value,
+            "max_violation_where": s.max_constraint_violation.text(), "penetration_mm": 1e3 * s.max_penetration,
+            "status": s.status_message(), "stages": s.stages, "n_knots": s.n_knots,
+            "checks": {k: bool(c["ok"]) for k, c in s.checks.items()}}
+
+
+def fmt_row(r: dict) -> str:
+    return (f"{r['case']:<24} {r['variant']:<8} {str(r['converged']):<9} {str(r['success']):<7} "
+            f"{r['iterations']:>5d} {r['build_s']:>7.1f} {r['solve_s']:>7.1f} {r['peak_mb']:>7.0f} "
+            f"{r['max_violation']:>9.1e} {r['penetration_mm']:>6.1f}")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--full", action="store_true", help="the whole grid (default: nominal cells only)")
+    ap.add_argument("--scenarios", nargs="+", default=list(SCENARIOS), choices=SCENARIOS)
+    ap.add_argument("--variants", nargs="+", default=["all", "none"], choices=list(VARIANTS))
+    ap.add_argument("--time-limit", type=float, default=None, help="per solve (s); default: Options")
+    ap.add_argument("--out", type=Path, default=ROOT / "runs" / "bench_to")
+    a = ap.parse_args(argv)
+    a.out.mkdir(parents=True, exist_ok=True)
+    model = G1Model()
+    rows = []
+    header = (f"{'case':<24} {'variant':<8} {'converged':<9} {'success':<7} {'iter':>5} {'build s':>7} "
+              f"{'solve s':>7} {'peak MB':>7} {'max viol':>9} {'pen mm':>6}")
+    print(header, flush=True)
+    for sc in a.scenarios:
+        cells = grid(sc) if a.full else grid(sc)[:1]
+        for over, variant in itertools.product(cells, a.variants):
+            r = run_case(model, sc, over, variant, a.out, a.time_limit)
+            rows.append(r)
+            print(fmt_row(r), flush=True)
+            (a.out / "summary.json").write_text(json.dumps({"rows": rows, "columns": COLUMNS}, indent=1))
+    print(f"\n{sum(r['success'] for r in rows)}/{len(rows)} succeeded; results under {a.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
