@@ -48,6 +48,10 @@ _SELF_COLLISION_BODIES = (
 )
 
 
+#: horizontal distance from the pelvis to where both hands hold an object in front of the G1 (m)
+HAND_REACH = 0.32
+
+
 class RetargetingError(ValueError):
     """The targets cannot be met by a feasible G1 configuration; ``code`` is an ErrorCode value."""
 
@@ -179,6 +183,13 @@ class Retargeter:
         base_R = self._base_rotation(target, feet)
         starts = [] if initial_qpos is None else [_finite(initial_qpos, 36, "initial_qpos")]
         starts += [self._seed(name, feet, base_R) for name in ("stand", "squat", "reach_up")]
+        hands = [t.position for t in targets.values() if t.limb in HANDS]
+        if self._sliding and hands:   # feet may move: also start in front of the hands' targets
+            reach = np.mean(hands, axis=0) - HAND_REACH * base_R[:, 0]
+            for name in ("squat", "stand"):
+                q = self._seed(name, feet, base_R)
+                q[0:2] = reach[:2]
+                starts.append(q)
         best: tuple[tuple[bool, float], np.ndarray] | None = None
         iterations_total = 0
         for q0 in starts:
@@ -227,6 +238,8 @@ class Retargeter:
             task = self.limb_tasks[limb]
             if limb in FEET:
                 task.set_position_cost(self._foot_position_cost(target, t))
+            else:   # with sliding feet the hands are what the keyframe is about
+                task.set_position_cost(1000.0 if self._sliding else 100.0)
             R = self._limb_rotation(limb, t, base_R, target.feet_pitch)
             p = t.position + (self._sole_offset * t.normal / np.linalg.norm(t.normal) if limb in FEET else 0.0)
             task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3(frames.matrix_to_quat(R)), p))
@@ -238,6 +251,9 @@ class Retargeter:
 
         iterations = 0
         for iterations in range(1, self.max_iterations + 1):
+            if self._sliding and len(feet) == 2:   # balance over where the feet are now, not their old targets
+                mid = np.mean([self.configuration.data.site(f).xpos for f in FEET], axis=0)
+                self.com_task.set_target(np.array([mid[0], mid[1], 0.0]))
             vel = mink.solve_ik(self.configuration, tasks, self.dt, self.solver, damping=1e-3, limits=self.limits)
             self.configuration.integrate_inplace(vel, self.dt)
             if iterations % 10 == 0:
