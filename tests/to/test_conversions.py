@@ -63,3 +63,12 @@ def test_unknown_motion_mode_is_refused(model):
     phase.object_motions[0].mode = "teleport"
     with pytest.raises(ProblemError, match="teleport"):
         conv.problem_from_request(req, model.joint_names)
+
+
+def test_durations_round_trip_without_losing_a_second():
+    from lomanip_to.conversions import duration_to_s, s_to_duration
+
+    for t in (0.0, 0.1, 6.9999999999, 7.9999999996, 12.5, 35.2):
+        d = s_to_duration(t)
+        assert 0 <= d.nanosec < 1_000_000_000
+        assert abs(duration_to_s(d) - t) < 1e-9

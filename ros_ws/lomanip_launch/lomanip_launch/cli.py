@@ -73,7 +73,9 @@ def build_graph(args: argparse.Namespace, run_dir: Path) -> ProcessGraph:
     python = sys.executable
     ros_args = ["--ros-args", "--params-file", str(params_file), "-p", f"scenario:={scenario}"]
     if overrides:
-        ros_args += ["-p", f"scenario_overrides:={yaml.safe_dump(overrides, default_flow_style=True).strip()}"]
+        # A YAML string parameter: quoted, or rcl would parse the mapping itself and refuse it.
+        text = yaml.safe_dump(overrides, default_flow_style=True, width=1 << 20).strip()
+        ros_args += ["-p", "scenario_overrides:='" + text.replace("'", "''") + "'"]
     specs = [NodeSpec("lomanip_sim", [python, "-m", "lomanip_sim.sim_node", *ros_args]),
              NodeSpec("lomanip_perception", [python, "-m", "lomanip_perception.perception_node", "--ros-args",
                                              "--params-file", str(params_file)]),

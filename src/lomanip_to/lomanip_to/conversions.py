@@ -36,8 +36,9 @@ def duration_to_s(d: Duration) -> float:
 
 
 def s_to_duration(t: float) -> Duration:
-    sec = math.floor(t)
-    return Duration(sec=int(sec), nanosec=int(round((t - sec) * 1e9)) % 1_000_000_000)
+    # round once, then split: 7.9999999999 s must become 8 s, not 7 s + 0 ns
+    sec, nanosec = divmod(int(round(t * 1e9)), 1_000_000_000)
+    return Duration(sec=int(sec), nanosec=int(nanosec))
 
 
 def _quat_xyzw(q: Quaternion) -> np.ndarray:
