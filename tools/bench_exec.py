@@ -1,0 +1,124 @@
+#!/usr/bin/env python3
+"""Benchmark of physics execution (issue 6): TO results executed by the whole-body controller.
+
+Every case is a TO result executed under MuJoCo physics with torques only (lomanip_sim.execution):
+the TO fixtures solved here (case_stand, case_one_step, case_lift_box, optionally s1_basket /
+s2_trolley with --problems), and every runs/bench_to/*.npz written by tools/bench_to.py
+(``TOResult.load``; the problem name and overrides come from a sibling <stem>.json
+``{"problem": ..., "overrides": {...}}``, else the file stem must be a fixture name). A plan whose
+fixture names a lomanip_sim scenario runs in that scenario's world (S1/S2 task success); the others
+in a world built from the plan's own scene. Prints per case: TO convergence, task success, fell,
+max/RMS pelvis position and joint tracking error, final object position error, real-time factor
+(unpaced: simulated time / wall time of physics + control), and saves under runs/bench_exec/<case>/
+a video (MP4, or GIF without an MP4 encoder), PNG frames, tracking.png, forces.png, metrics.json.
+
+    .venv/bin/python tools/bench_exec.py                          # the three TO test cases (~2.5 min)
+    .venv/bin/python tools/bench_exec.py --cases case_stand --problems s1_basket
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+for _p in ("src/lomanip_sim", "src/lomanip_to"):
+    sys.path.insert(0, str(ROOT / _p))
+
+FIXTURES = ("case_stand", "case_one_step", "case_lift_box")
+
+
+def plan_world(problem: str, overrides: dict, prob, traj_start):
+    """(Simulation, scenario name) for a plan: the fixture's lomanip_sim scenario, or its own scene."""
+    from lomanip_sim import scene_world
+    from lomanip_sim.scenario import load_scenario
+    from lomanip_sim.simulator import Simulation
+    from lomanip_to import fixtures
+
+    raw = yaml.safe_load(Path(fixtures.config_path(problem)).read_text())
+    if raw.get("scenario"):
+        _params, sim_over = fixtures._scenario_params(raw, overrides)
+        return Simulation(load_scenario(raw["scenario"], sim_over)), raw["scenario"]
+    world = scene_world.build_scene_world(scene_world.objects_from_to_problem(prob), robot_qpos=traj_start)
+    return Simulation(world), problem
+
+
+def cases(args) -> list[tuple[str, str, dict, Path | None]]:
+    """(case label, fixture problem name, overrides, saved result path or None to solve here)."""
+    out = [(c, c, {}, None) for c in args.cases] + [(p, p, {}, None) for p in args.problems]
+    bench_to = ROOT / args.bench_to
+    for npz in sorted(bench_to.glob("*.npz")) if bench_to.is_dir() else []:
+        side = npz.with_suffix(".json")
+        meta = json.loads(side.read_text()) if side.is_file() else {}
+        problem = meta.get("problem", npz.stem)
+        out.append((npz.stem, problem, meta.get("overrides", {}) or {}, npz))
+    return out
+
+
+def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_root: Path, video: bool) -> dict:
+    from lomanip_sim.execution import Execution
+    from lomanip_sim.media import save_run
+    from lomanip_sim.trajectory import TrajectoryError, from_to_result
+    from lomanip_to import fixtures, solver
+    from lomanip_to.result import TOResult
+
+    prob = fixtures.load_problem(problem, overrides)
+    t0 = time.perf_counter()
+    res = TOResult.load(saved) if saved is not None else solver.solve(prob)
+    solve_s = time.perf_counter() - t0
+    if res.t is None:
+        res.densify()
+    row = {"case": label, "problem": problem, "overrides": overrides, "to_converged": bool(res.success),
+           "to_time_s": round(solve_s, 1) if saved is None else None}
+    try:
+        traj = from_to_result(res, prob.phases)
+        sim, scenario = plan_world(problem, overrides, prob, traj.qpos(0))
+        traj.scenario = scenario
+        ex = Execution(sim, traj)
+    except TrajectoryError as e:
+        row.update(error=f"{e.code}: {e.message}")
+        return row
+    m = ex.run()
+    files = save_run(out_root / label, ex, label, video=video)
+    row.update(m.as_dict(), plan_duration=traj.duration, files=files)
+    return row
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--cases", nargs="*", default=list(FIXTURES), help="TO fixtures to solve and execute")
+    ap.add_argument("--problems", nargs="*", default=[], help="more fixtures (e.g. s1_basket s2_trolley)")
+    ap.add_argument("--bench-to", default="runs/bench_to", help="folder of saved TO results (*.npz)")
+    ap.add_argument("--out", default="runs/bench_exec")
+    ap.add_argument("--no-video", action="store_true")
+    args = ap.parse_args()
+    out_root = ROOT / args.out
+    out_root.mkdir(parents=True, exist_ok=True)
+    rows = []
+    hdr = (f"{'case':<28}{'TO':>5}{'success':>9}{'fell':>6}{'base max/rms cm':>17}{'joint max/rms rad':>19}"
+           f"{'obj cm':>8}{'RTF':>6}{'QPfail':>7}")
+    print(hdr)
+    for label, problem, overrides, saved in cases(args):
+        row = run_case(label, problem, overrides, saved, out_root, not args.no_video)
+        rows.append(row)
+        if "error" in row:
+            print(f"{label:<28}{'yes' if row['to_converged'] else 'no':>5}  refused: {row['error']}")
+            continue
+        print(f"{label:<28}{'yes' if row['to_converged'] else 'no':>5}{str(row['task_success']):>9}{str(row['fell']):>6}"
+              f"{100 * row['max_base_position_error']:>9.2f}/{100 * row['rms_base_position_error']:<7.2f}"
+              f"{row['max_joint_error']:>10.3f}/{row['rms_joint_error']:<8.3f}"
+              f"{100 * row['final_object_position_error']:>8.1f}{row['real_time_factor']:>6.2f}{row['qp_failures']:>7d}")
+        print(f"    {row['task_success_detail']}")
+    ok = [r for r in rows if r.get("task_success")]
+    print(f"task success {len(ok)}/{len(rows)}; fell {sum(bool(r.get('fell')) for r in rows)}; "
+          f"outputs under {out_root}")
+    (out_root / "summary.json").write_text(json.dumps(rows, indent=2, default=str))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
