@@ -32,8 +32,11 @@ _NLPS: dict = {}
 _SOLVERS: dict = {}
 _MODEL: list = []
 _CALLBACKS: dict = {}
-#: iteration cap of the homotopy guide stage (ellipsoid surrogate); the final stage is not capped
-GUIDE_STAGE_MAX_ITER = 80
+#: iteration cap of the homotopy guide stage (ellipsoid surrogate); the final stage is not capped.
+#: The guide should normally converge (to ipopt's acceptable level): only then does the final stage
+#: get a primal-dual warm start, which then takes a few iterations (S1 subtask 0: guide 127 + final
+#: 16).  With a cap of 80 the guide stopped early and the final stage failed from a cold barrier.
+GUIDE_STAGE_MAX_ITER = 300
 #: horizons up to this many knots are solved in one piece (segmenting only pays for long tasks)
 SEGMENT_MIN_KNOTS = 60
 
