@@ -200,6 +200,16 @@ class PlannerNode(Node):
                                  f"after {self.timeouts['state']:.0f} s; is lomanip_sim running?")
             time.sleep(0.1)
 
+        known = {o.id: o for o in self._scene.objects}
+        for g in request.placement_goals:
+            if g.object_id not in known:
+                raise PlanFailed(ErrorCode.UNKNOWN_OBJECT, f"placement goal for {g.object_id!r}, which is not in the "
+                                 f"scene (objects: {', '.join(sorted(known))})")
+            if not known[g.object_id].movable:
+                raise PlanFailed(ErrorCode.INVALID_REQUEST, f"placement goal for {g.object_id!r}, which is fixed")
+            if not all(np.isfinite([g.position.x, g.position.y, g.position.z, g.yaw])):
+                raise PlanFailed(ErrorCode.INVALID_REQUEST, f"placement goal for {g.object_id!r} is not finite")
+
         t0 = time.perf_counter()
         feedback(Progress("perception", 0, n, progress=0.05, message="extracting contacts"))
         log.info(f"planning {n} subtasks: {prompts}")
