@@ -99,4 +99,6 @@ def test_lift_box_friction_grasp():
     print(f"\nbox lifted {lift:.3f} m (planned {planned:.3f}), pelvis max err {eb:.3f} m, joint max {ej:.3f} rad")
     assert lift > 0.05
     assert eb < 0.05
+    box_error = np.linalg.norm(sim.object_pose("box")[0] - tr.objects["box"][0][-1])
+    assert box_error < 0.05, f"box {box_error:.3f} m from its planned final position"
     assert sim.model.neq == 0  # no equality (weld) constraints exist in the world

@@ -57,8 +57,8 @@ class WbcGains:
     foot_kp: float = 400.0
     foot_kd: float = 40.0
     contact_kd: float = 20.0  # damping of a contact foot's drift velocity
-    hand_kp: float = 150.0
-    hand_kd: float = 25.0
+    hand_kp: float = 400.0  # stiff: a lagging hand catches on the table edge (case_lift_box)
+    hand_kd: float = 40.0
     posture_kp: float = 100.0
     posture_kd: float = 20.0
     w_contact: float = 1e3
@@ -66,8 +66,8 @@ class WbcGains:
     w_base_ori: float = 50.0
     w_base_pos: float = 5.0
     w_swing: float = 200.0
-    w_hand: float = 30.0
-    w_hand_ori: float = 2.0
+    w_hand: float = 300.0
+    w_hand_ori: float = 10.0
     w_posture: float = 1.0
     w_force: float = 1e-3  # per N^2, towards the planned contact force
     reg_qdd: float = 1e-5
@@ -79,7 +79,7 @@ class WbcGains:
     com_margin: float = 0.03  # m: CoM reference kept this far inside the contact soles' bounding box
     hand_offset_ramp: float = 0.3  # s, see WholeBodyController._hand_offsets
     hand_squeeze: float = -0.005  # m: hand target this far inside the surface (negative = into the object)
-    hand_clearance: float = 0.0  # m, extra distance from the surface while approaching a contact
+    hand_clearance: float = 0.02  # m, extra distance from the surface while approaching a contact
     hand_engage_error: float = 0.06  # m: planned hand force is applied once the hand got this close
 
 
