@@ -1,7 +1,11 @@
-"""`make demo`: start the graph on S1, record a bag, summarise it, save an RGB and a depth PNG.
+"""`make demo`: the graph, a bag, and a plan from prompts.
 
-The PNGs are decoded from the recorded bag (not from the simulator), so they also show that the
-bag holds usable camera data.
+1. Start the graph on S1, record 10 s of every topic (camera included), summarise the bag and save
+   an RGB and a depth PNG decoded from the bag (not from the simulator), so they also show that the
+   bag holds usable camera data.
+2. `lomanip plan push_trolley --record`: a prompt list planned end to end (perception ->
+   retargeting -> TO) through /lomanip/plan, its outputs and bag saved under runs/<timestamp>/.
+   With ``--execute`` the trajectory is then run under physics.
 """
 from __future__ import annotations
 
@@ -80,4 +84,18 @@ def run_demo(args: argparse.Namespace) -> int:
         return EXIT_GRAPH
     for p in pngs:
         print(f"[lomanip] wrote {p}")
-    return 0
+    if args.no_plan:
+        return 0
+    return run_plan_demo(args)
+
+
+def run_plan_demo(args: argparse.Namespace) -> int:
+    """Step 2: plan the short push task end to end with the real graph (see push_trolley.yaml)."""
+    from lomanip_launch.plan_cmd import cmd_plan
+
+    plan_args = argparse.Namespace(
+        task=args.task, prompt=None, place=None, scenario=None, set=None, params=args.params, record=True,
+        record_camera=False, execute=args.execute, max_iterations=None, timeout=1800.0,
+        no_progress=args.no_progress, run_dir=args.run_dir)
+    print(f"[lomanip] demo: planning task {args.task} from its prompts", flush=True)
+    return cmd_plan(plan_args)

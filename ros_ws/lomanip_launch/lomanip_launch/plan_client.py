@@ -65,15 +65,22 @@ class _Progress:
 
     def update(self, fb: Plan.Feedback) -> None:
         text = f"{fb.stage} {fb.subtask_index + 1}/{fb.subtask_count}"
+        if self.bar is None:
+            # log lines: each new stage, then one line per 10 TO iterations or per 5 % of the execution
+            line = text
+            if fb.stage == "optimisation" and fb.iteration:
+                line += f" it {fb.iteration // 10 * 10}"
+            elif fb.stage == "execution":
+                line += f" {int(fb.progress * 20)}"
+            if line != self.last:
+                print(f"[lomanip] {text}: {fb.message}", flush=True)
+            self.last = line
+            return
         if fb.stage == "optimisation" and fb.iteration:
             text += f" it {fb.iteration}"
-        if self.bar is None:
-            if text != self.last:
-                print(f"[lomanip] {text}: {fb.message}", flush=True)
-        else:
-            self.bar.n = int(round(100 * min(max(fb.progress, 0.0), 1.0)))
-            self.bar.set_description(text)
-            self.bar.set_postfix_str(fb.message[:60])
+        self.bar.n = int(round(100 * min(max(fb.progress, 0.0), 1.0)))
+        self.bar.set_description(text)
+        self.bar.set_postfix_str(fb.message[:60])
         self.last = text
 
     def close(self) -> None:
