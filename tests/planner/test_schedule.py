@@ -70,12 +70,21 @@ def test_s1_schedule_is_valid_for_the_to():
 
 def test_push_makes_a_rolling_object_move_while_walking():
     stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+    goal = PlacementGoal("trolley", (1.4, 0.0, 0.3), 0.0)
     push = SubtaskKeyframe(0, "push the trolley forward", G1_STAND_QPOS.copy(),
-                           _feet(0.6) + _hands(0.5, 0.85, "trolley", half=0.2), rolling_objects=frozenset({"trolley"}))
+                           _feet(0.6) + _hands(0.5, 0.85, "trolley", half=0.2), rolling_objects=frozenset({"trolley"}),
+                           placement=goal, push_feet=_feet(1.1))
     sched = plan_schedule(stance, [push])
     moving = [ph for ph in sched.phases if "trolley" in ph.objects]
     assert moving and all(ph.objects["trolley"].mode == "rolling" for ph in moving)
     assert any(ph.phase_type == WALKING for ph in moving)
+    # first the robot walks up to the handle with the trolley still, then grasps, then pushes
+    first_move = sched.phases.index(moving[0])
+    assert any(ph.phase_type == WALKING for ph in sched.phases[:first_move])
+    assert sched.keyframes[0].time <= moving[0].start + 1e-9
+    # the push ends where the goal holds, the feet 0.5 m further on
+    g = sched.placement_goals[0]
+    assert g.object_id == "trolley" and g.time == pytest.approx(moving[-1].end)
 
 
 def test_placing_nothing_is_an_error():

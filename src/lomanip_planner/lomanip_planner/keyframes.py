@@ -19,7 +19,7 @@ Then :func:`build_problem` assembles scene, keyframes, schedule and options into
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -77,9 +77,34 @@ class _Displacement:
         return LimbTarget(t.limb, self.point(t.position), self.normal(t.normal), t.object_id)
 
 
+#: how far "push X forward" moves X when the request gives no placement goal for it (m): one step of
+#: each foot (schedule.Timing.max_step_length); the planner node's ``push_distance`` parameter
+PUSH_DISTANCE = 0.25
+
+
+def _as_placed(obj: SceneObject, d: "_Displacement | None") -> SceneObject:
+    """The object where the plan has it so far (after earlier subtasks moved it)."""
+    if d is None:
+        return obj
+    from lomanip_sim import frames as fr
+
+    yaw = obj.yaw() + d.dyaw
+    q = fr.yaw_to_quat(yaw)   # (w, x, y, z)
+    return replace(obj, position=tuple(d.target), quat_xyzw=(q[1], q[2], q[3], q[0]))
+
+
+def push_goal(obj: SceneObject, d: "_Displacement | None" = None, distance: float = PUSH_DISTANCE) -> PlacementGoal:
+    """Where "push X forward" takes X: ``distance`` along its heading (local +x), same yaw."""
+    o = _as_placed(obj, d)
+    yaw = o.yaw()
+    p = np.asarray(o.position, float) + distance * np.array([np.cos(yaw), np.sin(yaw), 0.0])
+    return PlacementGoal(o.id, tuple(float(v) for v in p), float(yaw))
+
+
 def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObject], stance: Stance,
                       retargeter: Retargeter, placements: dict[str, PlacementGoal] | None = None,
-                      current_qpos: np.ndarray | None = None) -> list[SubtaskKeyframe]:
+                      current_qpos: np.ndarray | None = None,
+                      push_distance: float = PUSH_DISTANCE) -> list[SubtaskKeyframe]:
     """One retargeted keyframe per subtask, chained (each starts from the previous solution)."""
     by_id = {o.id: o for o in objects}
     placements = placements or {}
@@ -134,9 +159,20 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
         hand_objects = [t.object_id for t in targets if t.limb in HANDS]
         rolling = frozenset(o.id for o in objects if o.object_class == "trolley")
         placement = next((placements[oid] for oid in hand_objects if oid in placements), None)
+        push_feet = []
+        if "push" in actions_of(st.prompt) and hand_objects:
+            pushed = by_id[hand_objects[0]]
+            if pushed.id not in placements:   # default: straight ahead along the object's heading
+                placement = push_goal(pushed, moved.get(pushed.id), push_distance)
+            d = _Displacement.of(_as_placed(pushed, moved.get(pushed.id)), placement)
+            moved[pushed.id] = _Displacement.of(pushed, placement)
+            # the feet walk with the push; later subtasks start from there
+            push_feet = [d.moved(t) for t in targets if t.limb in FEET]
+            for t in push_feet:
+                feet_now[t.limb] = (t.position.copy(), t.object_id)
         out.append(SubtaskKeyframe(st.index, st.prompt, res.qpos, targets, rolling_objects=rolling,
                                    placement=placement, reference_object_id=hand_objects[0] if hand_objects else "",
-                                   retarget=res))
+                                   retarget=res, push_feet=push_feet))
     return out
 
 

@@ -64,6 +64,7 @@ class PlannerNode(Node):
         self.timeouts = {stage: float(self.declare_parameter(f"{stage}_timeout", default).value)
                          for stage, default in (("state", 10.0), ("reset", 60.0), ("perception", 300.0), ("retargeting", 60.0),
                                                 ("optimisation", 900.0), ("execution", 600.0))}
+        self.push_distance = float(self.declare_parameter("push_distance", 0.25).value)
         from .retargeting import Retargeter
 
         self.retargeter = Retargeter()
@@ -227,7 +228,8 @@ class PlannerNode(Node):
             stance = conv.stance_from_qpos(self.retargeter, qpos)
             subtasks = conv.subtasks_from_perception(per.contacts, per.human_poses, prompts)
             placements = {g.object_id: conv.placement_goal(g) for g in request.placement_goals}
-            keyframes = retarget_subtasks(subtasks, objects, stance, self.retargeter, placements, qpos)
+            keyframes = retarget_subtasks(subtasks, objects, stance, self.retargeter, placements, qpos,
+                                          push_distance=self.push_distance)
             problem, schedule = build_problem(objects, keyframes, stance, conv.x_from_qpos(qpos),
                                               name=self._scene.scenario)
         except (RetargetingError, ScheduleError, ProblemError) as exc:

@@ -12,8 +12,10 @@ stance and each keyframe the schedule inserts:
      -> lift (object ``free``, carried from then on);
    * place / put / set: lower the carried object to its placement goal (``free``) -> release (hands
      still in contact, object resting) -> retract (hands free); the object is no longer carried;
-   * push: hands on the object, the object moves (``rolling`` for wheeled objects, otherwise
-     ``supported``, i.e. sliding) while the robot walks behind it to the keyframe's feet;
+   * push: walk up to the keyframe's feet, reach and grasp (the keyframe), then the object moves
+     (``rolling`` for wheeled objects, otherwise ``supported``, i.e. sliding) while the robot walks
+     behind it to ``push_feet``, and its placement goal (the request's, or keyframes.PUSH_DISTANCE
+     straight ahead) holds at the end of the push -> release -> retract;
    * step on / climb: the feet end on the object's top (handled by the footsteps).
    A prompt may chain several ("step on the box and grab the basket").
 
@@ -100,6 +102,7 @@ class SubtaskKeyframe:
     placement: PlacementGoal | None = None
     reference_object_id: str = ""
     retarget: object | None = None       # the RetargetResult (residuals, limits, timing) it came from
+    push_feet: list = field(default_factory=list)   # push: where the feet end (the object moved with them)
 
 
 @dataclass
@@ -185,12 +188,17 @@ def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timi
             if not hands:
                 raise ScheduleError(f"subtask {sk.index} ({sk.prompt!r}): push without a hand contact")
             target = next(iter(hands.values())).object_id
+            b.walk_to(feet, sk.index)                        # up to the object (keyframe stance)
             b.add(tm.reach, sk.index, hands=dict(b.held))
             b.held = dict(hands)
             b.add(tm.grasp, sk.index, objects={})
             kf_time = b.t
             mode = "rolling" if target in sk.rolling_objects else "supported"
-            b.walk_to(feet, sk.index, objects={target: ObjectMotion(mode)})
+            after = {c.limb: (np.asarray(c.position, float), c.object_id) for c in sk.push_feet}
+            b.walk_to(after, sk.index, objects={target: ObjectMotion(mode)})   # the push itself
+            if sk.placement is not None and sk.placement.object_id == target:
+                out.placement_goals.append(PlacementGoal(target, tuple(sk.placement.position), sk.placement.yaw,
+                                                         time=b.t, weight=sk.placement.weight))
             b.add(tm.release, sk.index, objects={})
             b.held = {}
             b.add(tm.retract, sk.index, objects={})
