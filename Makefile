@@ -7,13 +7,14 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export MUJOCO_GL ?= egl
 export PYTHONUNBUFFERED := 1
 
-.PHONY: setup demo test test-all bench bench-to clean help
+.PHONY: setup demo test test-all bench bench-graph bench-perception bench-plan bench-to bench-exec clean help
 
 help:
 	@echo "make setup   - idempotent set-up: apt packages (as root), .venv, interfaces, lomanip packages"
 	@echo "make demo    - run the main job (see README)"
 	@echo "make test    - run the test suite (unit + graph tests; heavy cases are in the benchmarks)"
-	@echo "make bench   - run the benchmarks and print their figures"
+	@echo "make bench   - run every benchmark below and print their figures (long)"
+	@echo "make bench-graph | bench-perception | bench-plan | bench-to | bench-exec - one benchmark (see README)"
 
 setup:
 	@tools/setup.sh
@@ -27,8 +28,22 @@ test: setup
 test-all: setup
 	$(PY) -m pytest -q -m "slow or not slow" tests
 
-bench: setup
+bench: bench-graph bench-perception bench-plan bench-to bench-exec
+
+bench-graph: setup
 	$(PY) tools/bench_graph.py
+
+bench-perception: setup
+	$(PY) tools/bench_perception.py
+
+bench-plan: setup
+	$(PY) tools/bench_plan.py
+
+bench-to: setup
+	$(PY) tools/bench_to.py
+
+bench-exec: setup
+	$(PY) tools/bench_exec.py
 
 clean:
 	rm -rf build runs .pytest_cache
