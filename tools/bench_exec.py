@@ -4,8 +4,8 @@
 Every case is a TO result executed under MuJoCo physics with torques only (lomanip_sim.execution):
 the TO fixtures solved here (case_stand, case_one_step, case_lift_box, optionally s1_basket /
 s2_trolley with --problems), and every runs/bench_to/*.npz written by tools/bench_to.py
-(``TOResult.load``; the problem name and overrides come from a sibling <stem>.json
-``{"problem": ..., "overrides": {...}}``, else the file stem must be a fixture name). A plan whose
+(``TOResult.load``; the fixture is the config name that starts the file name, the grid overrides
+come from runs/bench_to/summary.json). A plan whose
 fixture names a lomanip_sim scenario runs in that scenario's world (S1/S2 task success); the others
 in a world built from the plan's own scene. Prints per case: TO convergence, task success, fell,
 max/RMS pelvis position and joint tracking error, final object position error, real-time factor
@@ -47,15 +47,26 @@ def plan_world(problem: str, overrides: dict, prob, traj_start):
     return Simulation(world), problem
 
 
+def _problem_of(stem: str) -> str:
+    """The fixture a saved result belongs to: the longest config name that starts its file stem."""
+    from lomanip_to import fixtures
+
+    names = [p.stem for p in Path(fixtures.CONFIG_DIR).glob("*.yaml")]
+    match = [n for n in names if stem == n or stem.startswith(n + "_")]
+    return max(match, key=len) if match else stem
+
+
 def cases(args) -> list[tuple[str, str, dict, Path | None]]:
     """(case label, fixture problem name, overrides, saved result path or None to solve here)."""
     out = [(c, c, {}, None) for c in args.cases] + [(p, p, {}, None) for p in args.problems]
     bench_to = ROOT / args.bench_to
+    rows = {}
+    summary = bench_to / "summary.json"
+    if summary.is_file():  # tools/bench_to.py: rows with case, variant and the grid overrides
+        rows = {f"{r['case']}_{r['variant']}": r for r in json.loads(summary.read_text()).get("rows", [])}
     for npz in sorted(bench_to.glob("*.npz")) if bench_to.is_dir() else []:
-        side = npz.with_suffix(".json")
-        meta = json.loads(side.read_text()) if side.is_file() else {}
-        problem = meta.get("problem", npz.stem)
-        out.append((npz.stem, problem, meta.get("overrides", {}) or {}, npz))
+        row = rows.get(npz.stem, {})
+        out.append((npz.stem, _problem_of(npz.stem), dict(row.get("overrides") or {}), npz))
     return out
 
 
@@ -100,7 +111,7 @@ def main() -> int:
     out_root.mkdir(parents=True, exist_ok=True)
     rows = []
     hdr = (f"{'case':<28}{'TO':>5}{'success':>9}{'fell':>6}{'base max/rms cm':>17}{'joint max/rms rad':>19}"
-           f"{'obj cm':>8}{'RTF':>6}{'QPfail':>7}")
+           f"{'obj cm/tilt rad':>16}{'RTF':>6}{'QPfail':>7}")
     print(hdr)
     for label, problem, overrides, saved in cases(args):
         row = run_case(label, problem, overrides, saved, out_root, not args.no_video)
@@ -111,7 +122,8 @@ def main() -> int:
         print(f"{label:<28}{'yes' if row['to_converged'] else 'no':>5}{str(row['task_success']):>9}{str(row['fell']):>6}"
               f"{100 * row['max_base_position_error']:>9.2f}/{100 * row['rms_base_position_error']:<7.2f}"
               f"{row['max_joint_error']:>10.3f}/{row['rms_joint_error']:<8.3f}"
-              f"{100 * row['final_object_position_error']:>8.1f}{row['real_time_factor']:>6.2f}{row['qp_failures']:>7d}")
+              f"{100 * row['final_object_position_error']:>10.1f}/{row['final_object_tilt_error']:<5.2f}"
+              f"{row['real_time_factor']:>6.2f}{row['qp_failures']:>7d}")
         print(f"    {row['task_success_detail']}")
     ok = [r for r in rows if r.get("task_success")]
     print(f"task success {len(ok)}/{len(rows)}; fell {sum(bool(r.get('fell')) for r in rows)}; "

@@ -25,6 +25,7 @@ def test_save_run_writes_everything(executed, tmp_path):
     step = 1 if mp4_available() else 2  # 25 Hz log -> 25 fps MP4 or 12.5 fps GIF
     assert len(frames) == pytest.approx(len(executed.log.qpos) / step, abs=1)
     assert frames[0].shape[:2] == ((480, 640) if mp4_available() else (300, 400))
+    assert imageio.imread(files["strip"]).shape[:2] == (300, 1600)
     for p in files["plots"] + files["frames"]:
         img = imageio.imread(p)
         assert img.ndim == 3 and img.std() > 5.0  # not blank

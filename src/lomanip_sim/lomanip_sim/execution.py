@@ -54,6 +54,7 @@ class ExecutionMetrics:
     rms_joint_error: float = 0.0
     final_object_position_error: float = 0.0
     final_object_yaw_error: float = 0.0
+    final_object_tilt_error: float = 0.0  # rad, angle between actual and planned object z axes (not in the msg)
     qp_failures: int = 0
     cancelled: bool = False
 
@@ -155,13 +156,15 @@ class Execution:
         """Metrics and task success from the current physics state."""
         sim, tr = self.sim, self.traj
         outcome = evaluate(sim, tr, self.initial_objects, self.fell)
-        e_pos, e_yaw = 0.0, 0.0
+        e_pos, e_yaw, e_tilt = 0.0, 0.0, 0.0
         for oid, (p, q) in tr.objects.items():
             if oid in sim.world.objects and sim.world.objects[oid].movable:
                 pa, qa = sim.object_pose(oid)
                 e_pos = max(e_pos, float(np.linalg.norm(pa - p[-1])))
                 dy = frames.quat_to_yaw(qa) - frames.quat_to_yaw(q[-1])
                 e_yaw = max(e_yaw, abs(math.atan2(math.sin(dy), math.cos(dy))))
+                za, zp = frames.quat_to_matrix(qa)[:, 2], frames.quat_to_matrix(q[-1])[:, 2]
+                e_tilt = max(e_tilt, float(np.arccos(np.clip(za @ zp, -1.0, 1.0))))
         n = max(self._n_err, 1)
         wall = self._wall_total if self._wall_total > 0 else time.perf_counter() - self._wall0
         simulated = self._steps * sim.timestep
@@ -170,7 +173,7 @@ class Execution:
             fell=bool(self.fell), duration=simulated, real_time_factor=simulated / max(wall, 1e-9),
             max_base_position_error=self._max_base, rms_base_position_error=math.sqrt(self._e2_base / n),
             max_joint_error=self._max_joint, rms_joint_error=math.sqrt(self._e2_joint / n),
-            final_object_position_error=e_pos, final_object_yaw_error=e_yaw,
+            final_object_position_error=e_pos, final_object_yaw_error=e_yaw, final_object_tilt_error=e_tilt,
             qp_failures=self.wbc.status.qp_failures, cancelled=cancelled)  # fmt: skip
         self.finished = True
         return self.metrics

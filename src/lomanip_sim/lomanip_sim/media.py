@@ -25,7 +25,7 @@ def _camera(model, qpos_frames: list[np.ndarray], base_q: int) -> mujoco.MjvCame
     span = float(np.max(xy.max(axis=0) - xy.min(axis=0)))
     cam.lookat[:] = lookat + np.array([0.25, 0.0, 0.0])
     cam.distance = 2.6 + span
-    cam.azimuth = 145.0
+    cam.azimuth = 115.0  # from the robot's right, slightly in front: a table in front does not hide it
     cam.elevation = -15.0
     return cam
 
@@ -76,6 +76,16 @@ def save_png_frames(out_dir: Path, model, qpos_frames, times, picks=(0.0, 0.33, 
         imageio.imwrite(p, frame)
         paths.append(p)
     return paths
+
+
+def save_strip(path: Path, model, qpos_frames, picks=(0.0, 0.35, 0.6, 1.0), width: int = 400, height: int = 300) -> Path:
+    """One PNG of a few recorded states side by side (for README pictures)."""
+    import imageio.v2 as imageio
+
+    idx = sorted({min(int(p * (len(qpos_frames) - 1)), len(qpos_frames) - 1) for p in picks})
+    chosen = [qpos_frames[i] for i in idx]
+    imageio.imwrite(path, np.concatenate(list(render_frames(model, chosen, width, height)), axis=1))
+    return Path(path)
 
 
 def save_plots(out_dir: Path, log, title: str = "") -> list[Path]:
@@ -131,6 +141,7 @@ def save_run(out_dir: Path, execution, name: str, video: bool = True) -> dict:
         size = (640, 480) if mp4 else (400, 300)
         files["video"] = str(save_video(out_dir / "run.mp4", model, lg.qpos[::step], fps / step, *size))
         files["frames"] = [str(p) for p in save_png_frames(out_dir, model, lg.qpos, lg.t)]
+        files["strip"] = str(save_strip(out_dir / "strip.png", model, lg.qpos))
     metrics = execution.metrics.as_dict() if execution.metrics else {}
     (out_dir / "metrics.json").write_text(json.dumps({"name": name, "metrics": metrics, "files": files}, indent=2))
     return files

@@ -57,8 +57,13 @@ class WbcGains:
     foot_kp: float = 400.0
     foot_kd: float = 40.0
     contact_kd: float = 20.0  # damping of a contact foot's drift velocity
-    hand_kp: float = 400.0  # stiff: a lagging hand catches on the table edge (case_lift_box)
+    hand_kp: float = 400.0  # stiff near contacts: a lagging hand catches on the table edge (case_lift_box)
     hand_kd: float = 40.0
+    free_hand_kp: float = 150.0  # away from contacts the hands follow the plan softly (balance first)
+    free_hand_kd: float = 25.0
+    w_free_hand: float = 30.0
+    w_free_hand_ori: float = 2.0
+    hand_stiff_window: float = 0.6  # s before a hand contact starts (and after it ends) the stiff gains apply
     posture_kp: float = 100.0
     posture_kd: float = 20.0
     w_contact: float = 1e3
@@ -155,6 +160,7 @@ class WholeBodyController:
         self._M = np.zeros((m.nv, m.nv))
         self._scratch = mujoco.MjData(m)
         self.refs = self._precompute_refs()
+        self._hand_stiff = {l: self._near_contact(l) for l in HANDS}
         self.t0 = 0.0
         self.status = WbcStatus()
         self.last_forces: dict[str, np.ndarray] = {}
@@ -223,6 +229,15 @@ class WholeBodyController:
                 if np.linalg.norm(cand) > np.linalg.norm(off[i]):
                     off[i] = cand
         return off
+
+    def _near_contact(self, limb: str) -> np.ndarray:
+        """(N,) bool: the hand is in a contact phase or within ``hand_stiff_window`` of one."""
+        tr, win = self.traj, self.g.hand_stiff_window
+        out = np.zeros(tr.n, bool)
+        for ph in tr.phases:
+            if limb in ph.contacts:
+                out |= (tr.t >= ph.start - win) & (tr.t <= ph.end + win)
+        return out
 
     def _touching(self, data: mujoco.MjData, limb: str, object_id: str) -> bool:
         """True when the hand's collision box has a MuJoCo contact with a geom of ``object_id``."""
@@ -328,11 +343,13 @@ class WholeBodyController:
                     task(J, b, g.w_swing)
             else:
                 e = lerp(R_.site_p[limb]) - p
-                b = dlerp(R_.site_a[limb])[:3] + g.hand_kp * e + g.hand_kd * (dlerp(R_.site_v[limb])[:3] - vel[:3]) - jdv[:3]
-                task(J[:3], b, g.w_hand)
+                stiff = self._hand_stiff[limb][i if s < 0.5 else i + 1]
+                kp, kd, wh = (g.hand_kp, g.hand_kd, g.w_hand) if stiff else (g.free_hand_kp, g.free_hand_kd, g.w_free_hand)
+                b = dlerp(R_.site_a[limb])[:3] + kp * e + kd * (dlerp(R_.site_v[limb])[:3] - vel[:3]) - jdv[:3]
+                task(J[:3], b, wh)
                 eo = _rot_error(R_.site_R[limb][i if s < 0.5 else i + 1], Rm)
-                bo = g.hand_kp * eo + g.hand_kd * (dlerp(R_.site_v[limb])[3:] - vel[3:]) - jdv[3:]
-                task(J[3:], bo, g.w_hand_ori)
+                bo = kp * eo + kd * (dlerp(R_.site_v[limb])[3:] - vel[3:]) - jdv[3:]
+                task(J[3:], bo, g.w_hand_ori if stiff else g.w_free_hand_ori)
 
         # --- CoM
         mujoco.mj_jacSubtreeCom(m, data, self._jp, self.pelvis)
