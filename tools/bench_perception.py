@@ -203,6 +203,9 @@ def measure_startup(config_file: str | None, timeout: float = 90.0) -> dict:
                 os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait(5)
     end = time.monotonic() - t0
+    import shutil
+
+    shutil.rmtree(env["HF_HUB_CACHE"], ignore_errors=True)
     return {"config": config_file or "default (config/perception.yaml)", "ready_s": ready,
             "exit_s": None if ready else end, "returncode": proc.returncode if not ready else None,
             "libtorch_loaded": torch_loaded, "last_line": lines[-1] if lines else "",

@@ -147,7 +147,7 @@ def test_planner_gets_contacts_from_the_perception_node(client, tmp_path):
         print("plan stages", stages, "->", res.error_code.message)
         # retargeting consumed the perception contacts; the plan then stops at the missing optimiser
         assert res.error_code.val == ErrorCode.NOT_READY, (res.error_code.message, text)
-        assert stages == ["perception", "retargeting"] and "/lomanip/to/optimize" in res.error_code.message
+        assert stages[0] == "perception" and "retargeting" in stages and "/lomanip/to/optimize" in res.error_code.message
         assert len(res.keyframes.keyframes) > 0
         assert sim.poll() is None and perc.poll() is None and planner.poll() is None
 
