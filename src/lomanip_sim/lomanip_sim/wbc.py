@@ -21,7 +21,7 @@ orientation and position, swing-foot pose, hand position and orientation, postur
 Named simplifications: the foot moment reference is not tracked (only the net planned foot force;
 the QP distributes the corner forces); the CoM acceleration term J_dot v is neglected (site terms
 use mj_jacDot); contact states come from the schedule, not from touch detection. The QP solver is
-DAQP (dual active set, dense), warm started from the previous active set.
+DAQP (dual active set, dense), solved from scratch each step (~0.45 ms of the ~1.5 ms step on this machine).
 """
 
 from __future__ import annotations
@@ -161,6 +161,7 @@ class WholeBodyController:
         self._scratch = mujoco.MjData(m)
         self.refs = self._precompute_refs()
         self._hand_stiff = {l: self._near_contact(l) for l in HANDS}
+        self._pyramids: dict = {}
         self.t0 = 0.0
         self.status = WbcStatus()
         self.last_forces: dict[str, np.ndarray] = {}
@@ -229,6 +230,19 @@ class WholeBodyController:
                 if np.linalg.norm(cand) > np.linalg.norm(off[i]):
                     off[i] = cand
         return off
+
+    def _pyramid(self, normal, mu: float) -> np.ndarray:
+        """(5,3) rows of a linearised friction cone: 4 tangent rows (<= 0) and the normal; cached per normal."""
+        key = (tuple(np.round(np.asarray(normal, float), 9)), mu)
+        rows = self._pyramids.get(key)
+        if rows is None:
+            n = np.asarray(normal, float) / max(np.linalg.norm(normal), 1e-9)
+            t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+            t1 /= np.linalg.norm(t1)
+            t2 = np.cross(n, t1)
+            rows = np.array([t1 - mu * n, -t1 - mu * n, t2 - mu * n, -t2 - mu * n, n])
+            self._pyramids[key] = rows
+        return rows
 
     def _near_contact(self, limb: str) -> np.ndarray:
         """(N,) bool: the hand is in a contact phase or within ``hand_stiff_window`` of one."""
@@ -458,14 +472,8 @@ class WholeBodyController:
         bu = np.zeros(5 * len(points))
         bl = np.full(5 * len(points), -1e30)
         for k, (_l, _cj, n, mu, fmin) in enumerate(points):
-            n = np.asarray(n, float) / max(np.linalg.norm(n), 1e-9)
-            t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
-            t1 /= np.linalg.norm(t1)
-            t2 = np.cross(n, t1)
             c = NJ + NV + 3 * k
-            for r, tv in enumerate((t1, -t1, t2, -t2)):
-                Ain[5 * k + r, c : c + 3] = tv - mu * n
-            Ain[5 * k + 4, c : c + 3] = n
+            Ain[5 * k : 5 * k + 5, c : c + 3] = self._pyramid(n, mu)
             bu[5 * k + 4], bl[5 * k + 4] = g.f_max, fmin
         A_all = np.vstack([Aeq, Ahand, Ain])
         upper = np.concatenate([self.limits, beq, bhand, bu])
