@@ -34,7 +34,7 @@ bench-graph: setup
 	$(PY) tools/bench_graph.py
 
 bench-perception: setup
-	$(PY) tools/bench_perception.py
+	$(PY) tools/bench_perception.py --docs-figure docs/img/contact_transfer.png
 
 bench-plan: setup
 	$(PY) tools/bench_plan.py
