@@ -14,15 +14,13 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 
-from .helpers import ROOT, graph_env, wait_for
+from .helpers import ROOT, graph_env, ros_process, wait_for
 
 pytestmark = pytest.mark.graph
 
-LOMANIP = [sys.executable, "-m", "lomanip_launch.cli"]
 SCENE = ["--scenario", "s2_trolley", "--set", "trolley_position=[0.75, 0.0]", "--set", "table_position=[0.75, 1.6]"]
 PUSH = ["push the trolley forward"]
 
@@ -30,22 +28,11 @@ PUSH = ["push the trolley forward"]
 @pytest.fixture(scope="module")
 def graph(tmp_path_factory):
     d = tmp_path_factory.mktemp("e2e")
-    log = open(d / "lomanip.log", "w")
-    proc = subprocess.Popen(LOMANIP + ["up", *SCENE, "--record", str(d / "bag"), "--run-dir", str(d)], cwd=d,
-                            env=graph_env(), stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
-    try:
-        wait_for(lambda: "graph is up" in (d / "lomanip.log").read_text(), 180, "the graph", proc=proc,
-                 log_path=d / "lomanip.log")
+    log = d / "lomanip.log"
+    with ros_process(["-m", "lomanip_launch.cli", "up", *SCENE, "--record", str(d / "bag"), "--run-dir", str(d)],
+                     log) as proc:
+        wait_for(lambda: "graph is up" in log.read_text(), 180, "the graph", proc=proc, log_path=log)
         yield proc, d
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGINT)
-            try:
-                proc.wait(60)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait(5)
-        log.close()
 
 
 @pytest.fixture(scope="module")
