@@ -13,7 +13,10 @@ violation, max penetration.  Variants (``Options`` switches):
 
 Each result is saved as runs/bench_to/<case>_<variant>.npz (``lomanip_to.result.TOResult.load``
 reads it back; the execution benchmark uses these files) and the table as
-runs/bench_to/summary.json.  Peak memory is the process maximum so far (ru_maxrss), so it only
+runs/bench_to/summary.json.  The penetration over time of each result (sum of the robot's
+penetration depths into objects and environment per knot, the paper's Fig. 3 quantity) is plotted
+to runs/bench_to/<case>_<variant>_penetration.png, and the variants of one case are overlaid in
+runs/bench_to/<case>_penetration.png.  Peak memory is the process maximum so far (ru_maxrss), so it only
 grows along the run.  Timings are on this machine (2 shared cores; expect them higher under load).
 
   .venv/bin/python tools/bench_to.py                  # nominal S1 and S2, AllKeyframe + NoKeyframe
@@ -29,6 +32,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -64,6 +68,29 @@ def case_name(scenario: str, over: dict) -> str:
     return scenario + "".join(f"_{k.replace('box_', '')}{v:g}" for k, v in over.items())
 
 
+def plot_penetration(path: Path, title: str, curves: list) -> None:
+    """One PNG: penetration (mm) over time for each (label, t, penetration_m) curve, with the
+    5 mm acceptance line.  Agg backend: no display needed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.0, 2.6), dpi=110)
+    for label, t, pen in curves:
+        ax.plot(t, 1e3 * np.asarray(pen), label=label, lw=1.4)
+    ax.axhline(5.0, color="k", ls="--", lw=0.8, label="5 mm limit")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("penetration (mm)")
+    ax.set_title(title, fontsize=9)
+    ax.set_ylim(bottom=0.0)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
 def run_case(model, scenario: str, over: dict, variant: str, out: Path, time_limit: float | None) -> dict:
     opts = dict(VARIANTS[variant])
     if time_limit is not None:
@@ -75,12 +102,20 @@ def run_case(model, scenario: str, over: dict, variant: str, out: Path, time_lim
     res = solver.solve(prob, model)
     s = res.stats
     res.save(out / f"{name}_{variant}.npz")
+    plot_penetration(out / f"{name}_{variant}_penetration.png",
+                     f"{name} {variant}: {'success' if res.success else 'FAILED'}, max {1e3 * s.max_penetration:.1f} mm",
+                     [(variant, res.t_knots, res.penetration_knots)])
     return {"case": name, "variant": variant, "overrides": over, "converged": s.converged, "success": res.success,
             "iterations": s.iterations, "build_s": load_s + s.build_time, "solve_s": s.solve_time,
             "peak_mb": s.peak_memory_mb, "max_violation": s.max_constraint_violation.value,
             "max_violation_where": s.max_constraint_violation.text(), "penetration_mm": 1e3 * s.max_penetration,
             "status": s.status_message(), "stages": s.stages, "n_knots": s.n_knots,
             "checks": {k: bool(c["ok"]) for k, c in s.checks.items()}}
+
+
+def _load_penetration(path: Path) -> tuple:
+    with np.load(path, allow_pickle=False) as z:
+        return z["a/t_knots"], z["a/penetration_knots"]
 
 
 def fmt_row(r: dict) -> str:
@@ -110,6 +145,10 @@ def main(argv=None) -> int:
             rows.append(r)
             print(fmt_row(r), flush=True)
             (a.out / "summary.json").write_text(json.dumps({"rows": rows, "columns": COLUMNS}, indent=1))
+            case_rows = [q for q in rows if q["case"] == r["case"]]
+            if len(case_rows) > 1:  # variants of one case overlaid (paper Fig. 3 style)
+                plot_penetration(a.out / f"{r['case']}_penetration.png", r["case"], [
+                    (q["variant"], *_load_penetration(a.out / f"{q['case']}_{q['variant']}.npz")) for q in case_rows])
     print(f"\n{sum(r['success'] for r in rows)}/{len(rows)} succeeded; results under {a.out}")
     return 0
 

@@ -237,6 +237,17 @@ class ProblemData:
         self.pairs = pairs
 
     # ------------------------------------------------------------------ arrays
+    def _initial_tilt(self, foot: str) -> np.ndarray:
+        """Sole tilt rows (R[0,2], R[1,2]) of the fixed initial configuration.  Knot 0's x is fixed
+        (except the base height, which does not tilt a sole), so these rows are constants there: a
+        start measured in the sim with a sole tilted by 3e-4 made them infeasible and ipopt iterated
+        to its acceptable level (push_trolley: final stage ~200 extra iterations at viol 3.04e-4).
+        Their bounds at knot 0 are widened to include the start; every later knot is unchanged."""
+        if not hasattr(self, "_tilt0"):
+            limbs = self.model.numeric(self.x_init)["limbs"]
+            self._tilt0 = {f: np.array([limbs[f][1][0, 2], limbs[f][1][1, 2]]) for f in FEET}
+        return self._tilt0[foot]
+
     def fill(self, win: Window, expo: float, hard: bool, penalty: bool, homotopy: bool):
         """Bounds (lbw, ubw: n_w x (K+1)), row bounds (lbg, ubg: n_g x K), params P (n_p x K), W0."""
         prob, m, w = self.prob, self.model, self.w
@@ -330,6 +341,9 @@ class ProblemData:
                 else:
                     he = self._patch_half(c)
                     rows(f"{f} inside contact patch", k, -he, he)
+                    if k == 0:  # the start is given: see _initial_tilt
+                        tilt = self._initial_tilt(f)
+                        rows(f"{f} orientation aligned with surface", k, np.minimum(tilt, 0), np.maximum(tilt, 0))
                 if c is None or cn is None or cn.object_id != c.object_id:
                     rows(f"{f} no slip", k, -INF, INF)
                 rows(f"{f} friction cone", k, 0 if c is not None else -INF, INF)
