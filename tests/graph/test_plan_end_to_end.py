@@ -21,7 +21,7 @@ from .helpers import ROOT, graph_env, ros_process, wait_for
 
 pytestmark = pytest.mark.graph
 
-SCENE = ["--scenario", "s2_trolley", "--set", "trolley_position=[0.75, 0.0]", "--set", "table_position=[0.75, 1.6]"]
+SCENE = ["--scenario", "s2_trolley", "--set", "trolley_position=[0.85, 0.0]", "--set", "table_position=[0.75, 1.6]"]
 PUSH = ["push the trolley forward"]
 
 

@@ -77,6 +77,10 @@ def self_pairs(model: G1Model) -> tuple:
     return tuple(pairs)
 
 
+#: sine of the largest tilt of a swing sole (3 deg: heel/toe at most ~5 mm lower than the sole centre)
+SWING_TILT = 0.05
+
+
 class ProblemData:
     """All numeric arrays of one TO problem (bounds, parameters, warm start) + its structure."""
 
@@ -336,7 +340,9 @@ class ProblemData:
                 cn = self.contact(k + 1, f) if not last else None
                 if c is None:
                     rows(f"{f} on surface", k, 0, INF)  # above ground
-                    rows(f"{f} orientation aligned with surface", k, -INF, INF)
+                    # a swing sole stays nearly level (|tilt| <= SWING_TILT): the sole centre is
+                    # kept above ground, and a pitched foot would put its heel or toe into the floor
+                    rows(f"{f} orientation aligned with surface", k, -SWING_TILT, SWING_TILT)
                     rows(f"{f} inside contact patch", k, -INF, INF)
                 else:
                     he = self._patch_half(c)
@@ -376,6 +382,7 @@ class ProblemData:
                 rows(f"c{i} homotopy surrogate", k, 0 if (homotopy and on) else -INF, INF)
             for (a, b) in win.st.self_pairs:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
+            rows("floor clearance", k, 0, INF)  # smooth, so on in every homotopy stage
 
         # ---------------- parameters
         kf_sub = {kf.subtask_index: kf for kf in prob.keyframes}
