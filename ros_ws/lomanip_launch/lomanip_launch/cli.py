@@ -98,8 +98,12 @@ def _ros_node_names():
     """A readiness probe: the names of the nodes currently in the ROS graph."""
     import rclpy
 
+    from rclpy.signals import SignalHandlerOptions
+
     apply_to_current_process()
-    rclpy.init()
+    # The orchestrator handles Ctrl-C itself (stop the plan, then the nodes); rclpy's handler would
+    # shut the context down under a running plan client.
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     probe = rclpy.create_node("lomanip_orchestrator")
 
     def names() -> set[str]:
