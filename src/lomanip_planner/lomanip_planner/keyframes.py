@@ -111,7 +111,10 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
     feet_now = {"left_foot": (stance.left.copy(), stance.left_surface),
                 "right_foot": (stance.right.copy(), stance.right_surface)}
     out: list[SubtaskKeyframe] = []
-    q = current_qpos
+    # The first IK starts from the retargeter's own seeds, not from the measured state: a seed that
+    # differs by sensor-level noise can flip which local solution the IK finds (feet kept vs slid),
+    # and with it the footsteps of the whole plan. ``current_qpos`` is kept for callers' records.
+    q = None
     moved: dict[str, _Displacement] = {}
     for st in subtasks:
         targets: list[LimbTarget] = []

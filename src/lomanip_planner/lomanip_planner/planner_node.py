@@ -234,6 +234,9 @@ class PlannerNode(Node):
                                               name=self._scene.scenario)
         except (RetargetingError, ScheduleError, ProblemError) as exc:
             raise PlanFailed(getattr(exc, "code", ErrorCode.RETARGETING_INFEASIBLE), f"retargeting: {exc}") from exc
+        log.info(f"stance left {np.round(stance.left, 3).tolist()} right {np.round(stance.right, 3).tolist()}; "
+                 f"schedule {problem.duration:.1f} s: " + ", ".join(
+                     f"{ph.phase_type[0]}{ph.end - ph.start:.1f}" for ph in problem.phases))
         kf_msg = conv.keyframe_array_msg(problem.keyframes, self.get_clock().now().to_msg())
         response.keyframes = kf_msg
         self.pub_keyframes.publish(kf_msg)
