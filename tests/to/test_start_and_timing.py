@@ -34,3 +34,13 @@ def test_stage_timing_split(g1):
         assert 0 < t["eval"] <= t["wall"] + 1e-6
         assert t["calls"]["nlp_hess_l"] >= 1
         assert abs(t["wall"] - t["eval"] - t["callback"] - t["rest"]) < 1e-6 or t["rest"] == 0.0
+
+
+def test_floor_clearance_rows_for_every_sphere(g1):
+    data = ProblemData(load_problem("case_one_step", model=g1), g1)
+    win, _ = solver.get_window(g1, data.structure)
+    for stage in solver.homotopy_stages(data.prob.options):
+        _, _, lbg, ubg, _, _ = data.fill(win, *stage)
+        r = win.G["floor clearance"]
+        assert r.stop - r.start == len(g1.spheres)
+        assert np.all(lbg[r] == 0) and np.all(np.isinf(ubg[r]))

@@ -439,7 +439,7 @@ def extract(model: G1Model, data: ProblemData, win: Window, nlp: AssembledNLP, z
         return best
 
     is_dyn = lambda nm: any(nm.endswith(d) for d in DYNAMICS_ROWS)
-    is_col = lambda nm: ("collision" in nm or "surrogate" in nm or nm.startswith("self"))
+    is_col = lambda nm: ("collision" in nm or "surrogate" in nm or nm.startswith("self") or nm == "floor clearance")
     stats.max_dynamics_violation = worst(is_dyn)
     stats.max_contact_violation = worst(lambda nm: not is_dyn(nm) and not is_col(nm))
     stats.max_constraint_violation = worst(lambda nm: "surrogate" not in nm)

@@ -344,6 +344,9 @@ class Window:
             add(f"c{i} homotopy surrogate", Fs - 1 + s)
             cost += pp["w_stage"] * wpen * ca.fmin(d, 0) ** 2
             cost += pp["w_stage"] * whom * (pp["w_slack"] * s ** 2 + ca.fmax(1 - Fs, 0) ** 2)
+        # every collision sphere above the floor (z = 0): the sole rows only keep the sole point
+        # up, so a toe-down swing foot put its sphere 10 mm into the floor (push_trolley, t = 0.2 s)
+        add("floor clearance", ca.vertcat(*[spheres[s][2] - m.spheres[s].radius for s in range(len(m.spheres))]))
         for (i, j) in st.self_pairs:
             si, sj = m.spheres[i], m.spheres[j]
             dd = ca.sumsqr(spheres[i] - spheres[j]) - (si.radius + sj.radius + pp["self_margin"]) ** 2
