@@ -91,11 +91,18 @@ def run_demo(args: argparse.Namespace) -> int:
 
 def run_plan_demo(args: argparse.Namespace) -> int:
     """Step 2: plan the short push task end to end with the real graph (see push_trolley.yaml)."""
-    from lomanip_launch.plan_cmd import cmd_plan
+    from lomanip_launch.plan_cmd import EXIT_PLAN_FAILED, cmd_plan
 
     plan_args = argparse.Namespace(
         task=args.task, prompt=None, place=None, scenario=None, set=None, params=args.params, record=True,
         record_camera=False, execute=args.execute, max_iterations=None, timeout=1800.0,
         no_progress=args.no_progress, run_dir=args.run_dir)
     print(f"[lomanip] demo: planning task {args.task} from its prompts", flush=True)
-    return cmd_plan(plan_args)
+    code = cmd_plan(plan_args)
+    if code == EXIT_PLAN_FAILED:
+        # The pipeline ran and answered with an error code (e.g. TO_NOT_CONVERGED): that is the
+        # demo's honest result, printed above and in summary.yaml, not a broken demo.
+        print("[lomanip] demo: the graph ran the whole pipeline, but the plan FAILED with the error above "
+              "(see summary.yaml in the run folder); `lomanip plan` exits non-zero in this case", flush=True)
+        return 0
+    return code
