@@ -76,6 +76,8 @@ def build_graph(args: argparse.Namespace, run_dir: Path) -> ProcessGraph:
         # A YAML string parameter: quoted, or rcl would parse the mapping itself and refuse it.
         text = yaml.safe_dump(overrides, default_flow_style=True, width=1 << 20).strip()
         ros_args += ["-p", "scenario_overrides:='" + text.replace("'", "''") + "'"]
+    for item in getattr(args, "sim_params", None) or []:   # e.g. "camera_rate:=1.0" (lomanip plan)
+        ros_args += ["-p", item]
     specs = [NodeSpec("lomanip_sim", [python, "-m", "lomanip_sim.sim_node", *ros_args]),
              NodeSpec("lomanip_perception", [python, "-m", "lomanip_perception.perception_node", "--ros-args",
                                              "--params-file", str(params_file)]),

@@ -58,6 +58,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if args.record is True:
         args.record = str(run_dir / "bag")
     args.record_exclude = [] if args.record_camera else ["/lomanip/camera/"]
+    # Perception renders its own frame on demand (/lomanip/sim/get_rgbd_frame); without camera
+    # recording a 1 Hz stream leaves the CPU to the optimiser (15 Hz rendering costs most of a core).
+    args.sim_params = [] if args.record_camera else ["camera_rate:=1.0"]
     graph = build_graph(args, run_dir)
     print(f"[lomanip] plan: {task.scenario}, {len(task.prompts)} subtasks: {task.prompts}", flush=True)
 
