@@ -24,10 +24,10 @@ def _targets_from_pose(r: Retargeter, q: np.ndarray) -> tuple[LimbTarget, ...]:
     d = mujoco.MjData(r.model)
     d.qpos[:] = q
     mujoco.mj_kinematics(r.model, d)
-    q[2] -= min(d.site("left_foot").xpos[2], d.site("right_foot").xpos[2]) - r._sole_offset
+    q[2] -= min(d.site("left_foot").xpos[2], d.site("right_foot").xpos[2]) - r.sole_offset
     d.qpos[:] = q
     mujoco.mj_kinematics(r.model, d)
-    return tuple(LimbTarget(l, d.site(l).xpos.copy() - (np.array([0, 0, r._sole_offset]) if "foot" in l else 0.0))
+    return tuple(LimbTarget(l, d.site(l).xpos.copy() - (np.array([0, 0, r.sole_offset]) if "foot" in l else 0.0))
                  for l in LIMBS)
 
 

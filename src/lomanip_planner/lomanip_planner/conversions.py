@@ -2,7 +2,6 @@
 (besides the node)."""
 from __future__ import annotations
 
-import mujoco
 import numpy as np
 from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
 from sensor_msgs.msg import JointState
@@ -13,8 +12,7 @@ from lomanip_sim.robot_model import G1_JOINT_NAMES
 from lomanip_to.problem import FLOOR, PlacementGoal
 
 from .keyframes import SubtaskPerception
-from .retargeting import LimbTarget, Retargeter
-from .schedule import Stance
+from .retargeting import LimbTarget
 
 
 def robot_qpos(joints: JointState, pelvis_transform) -> np.ndarray:
@@ -26,20 +24,6 @@ def robot_qpos(joints: JointState, pelvis_transform) -> np.ndarray:
     t, r = pelvis_transform.translation, pelvis_transform.rotation
     return np.array([t.x, t.y, t.z, *frames.xyzw_to_wxyz([r.x, r.y, r.z, r.w]),
                      *[by_name[j] for j in G1_JOINT_NAMES]])
-
-
-def x_from_qpos(qpos: np.ndarray) -> tuple:
-    """The TO's 35-D state (base position, roll-pitch-yaw, 29 joints)."""
-    return (*qpos[:3], *frames.quat_to_rpy(qpos[3:7]), *qpos[7:])
-
-
-def stance_from_qpos(retargeter: Retargeter, qpos: np.ndarray, surfaces=(FLOOR, FLOOR)) -> Stance:
-    """Sole centres of both feet for a configuration (forward kinematics of the shared model)."""
-    data = mujoco.MjData(retargeter.model)
-    data.qpos[:] = qpos
-    mujoco.mj_kinematics(retargeter.model, data)
-    sole = np.array([0.0, 0.0, retargeter._sole_offset])
-    return Stance(data.site("left_foot").xpos - sole, data.site("right_foot").xpos - sole, *surfaces)
 
 
 def _vec(v) -> np.ndarray:

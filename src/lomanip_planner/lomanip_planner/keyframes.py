@@ -50,6 +50,24 @@ def surface_height(object_id: str, objects: dict[str, SceneObject]) -> float:
     return float(o.position[2] + o.top_z())
 
 
+def x_from_qpos(qpos: np.ndarray) -> tuple:
+    """The TO's 35-D state (base position, roll-pitch-yaw, 29 joints) of a MuJoCo-order qpos."""
+    from lomanip_sim import frames
+
+    return (*qpos[:3], *frames.quat_to_rpy(qpos[3:7]), *qpos[7:])
+
+
+def stance_from_qpos(retargeter: Retargeter, qpos: np.ndarray, surfaces=(FLOOR, FLOOR)) -> Stance:
+    """Sole centres of both feet for a configuration (forward kinematics of the shared model)."""
+    import mujoco
+
+    data = mujoco.MjData(retargeter.model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(retargeter.model, data)
+    sole = np.array([0.0, 0.0, retargeter.sole_offset])
+    return Stance(data.site("left_foot").xpos - sole, data.site("right_foot").xpos - sole, *surfaces)
+
+
 @dataclass(frozen=True)
 class _Displacement:
     """Planar rigid motion of an object from where perception saw it to where the plan puts it."""

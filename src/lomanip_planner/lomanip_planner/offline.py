@@ -15,9 +15,9 @@ import numpy as np
 from lomanip_sim import frames
 from lomanip_sim.robot_model import G1_JOINT_NAMES
 
-from .keyframes import SubtaskPerception, build_problem, retarget_subtasks
+from .keyframes import SubtaskPerception, build_problem, retarget_subtasks, stance_from_qpos, x_from_qpos
 from .retargeting import LimbTarget, Retargeter
-from .schedule import FLOOR, Schedule, Stance, SubtaskKeyframe
+from .schedule import FLOOR, Schedule, SubtaskKeyframe
 
 #: s of simulated standing before the robot state is read (what the node sees a moment after start)
 SETTLE_TIME = 0.5
@@ -85,20 +85,6 @@ def subtasks_from_results(results, prompts: list[str]) -> list[SubtaskPerception
     return out
 
 
-def x_from_qpos(qpos: np.ndarray) -> tuple:
-    return (*qpos[:3], *frames.quat_to_rpy(qpos[3:7]), *qpos[7:])
-
-
-def stance_of(retargeter: Retargeter, qpos: np.ndarray) -> Stance:
-    import mujoco
-
-    data = mujoco.MjData(retargeter.model)
-    data.qpos[:] = qpos
-    mujoco.mj_kinematics(retargeter.model, data)
-    sole = np.array([0.0, 0.0, retargeter._sole_offset])
-    return Stance(data.site("left_foot").xpos - sole, data.site("right_foot").xpos - sole, FLOOR, FLOOR)
-
-
 def plan(scenario: str, prompts: list[str], placements: dict | None = None, overrides: dict | None = None,
          perception_config: dict | None = None, retargeter: Retargeter | None = None, options=None,
          solve: bool = True, progress=None) -> OfflinePlan:
@@ -119,7 +105,7 @@ def plan(scenario: str, prompts: list[str], placements: dict | None = None, over
 
     t0 = time.perf_counter()
     retargeter = retargeter or Retargeter()
-    stance = stance_of(retargeter, out.state.qpos)
+    stance = stance_from_qpos(retargeter, out.state.qpos)
     subtasks = subtasks_from_results(out.perception, list(prompts))
     out.keyframes = retarget_subtasks(subtasks, out.state.objects, stance, retargeter, placements or {},
                                       out.state.qpos)

@@ -167,7 +167,7 @@ class PlannerNode(Node):
         from lomanip_to.conversions import request_from_problem, schedule_msg, scene_from_msg
         from lomanip_to.problem import ProblemError
 
-        from .keyframes import build_problem, retarget_subtasks
+        from .keyframes import build_problem, retarget_subtasks, stance_from_qpos, x_from_qpos
         from .retargeting import RetargetingError
         from .schedule import ScheduleError
 
@@ -225,12 +225,12 @@ class PlannerNode(Node):
         try:
             objects = scene_from_msg(self._scene)
             qpos = conv.robot_qpos(self._joints, self._pelvis)
-            stance = conv.stance_from_qpos(self.retargeter, qpos)
+            stance = stance_from_qpos(self.retargeter, qpos)
             subtasks = conv.subtasks_from_perception(per.contacts, per.human_poses, prompts)
             placements = {g.object_id: conv.placement_goal(g) for g in request.placement_goals}
             keyframes = retarget_subtasks(subtasks, objects, stance, self.retargeter, placements, qpos,
                                           push_distance=self.push_distance)
-            problem, schedule = build_problem(objects, keyframes, stance, conv.x_from_qpos(qpos),
+            problem, schedule = build_problem(objects, keyframes, stance, x_from_qpos(qpos),
                                               name=self._scene.scenario)
         except (RetargetingError, ScheduleError, ProblemError) as exc:
             raise PlanFailed(getattr(exc, "code", ErrorCode.RETARGETING_INFEASIBLE), f"retargeting: {exc}") from exc

@@ -133,7 +133,8 @@ class Retargeter:
         self.solver = solver
         self.configuration = mink.Configuration(self.model)
         self.stand = self.model.key("stand").qpos.copy()
-        self._sole_offset = self._measure_sole_offset()
+        self._sliding: set[str] = set()   # feet allowed to slide in the current solve
+        self.sole_offset = self._measure_sole_offset()
         self.limb_tasks = {
             # Feet carry the robot: they outrank the hands, so an unreachable hand target shows as
             # a hand residual instead of a lifted foot.
@@ -241,7 +242,7 @@ class Retargeter:
             else:   # with sliding feet the hands are what the keyframe is about
                 task.set_position_cost(1000.0 if self._sliding else 100.0)
             R = self._limb_rotation(limb, t, base_R, target.feet_pitch)
-            p = t.position + (self._sole_offset * t.normal / np.linalg.norm(t.normal) if limb in FEET else 0.0)
+            p = t.position + (self.sole_offset * t.normal / np.linalg.norm(t.normal) if limb in FEET else 0.0)
             task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3(frames.matrix_to_quat(R)), p))
             tasks.append(task)
         if len(feet) == 2:
@@ -319,9 +320,9 @@ class Retargeter:
         out = {}
         for limb, t in targets.items():
             p = self.configuration.get_transform_frame_to_world(limb, "site").translation()
-            goal = t.position + (self._sole_offset * t.normal if limb in FEET else 0.0)
+            goal = t.position + (self.sole_offset * t.normal if limb in FEET else 0.0)
             err = p - goal
-            if limb in getattr(self, "_sliding", ()):
+            if limb in self._sliding:
                 err = np.dot(err, t.normal) * t.normal   # a sliding foot only has to stay on its surface
             out[limb] = float(np.linalg.norm(err))
         return out
@@ -341,7 +342,7 @@ class Retargeter:
         points = {}
         for limb, t in targets.items():
             p = data.site(limb).xpos.copy()
-            points[limb] = p - self._sole_offset * t.normal if limb in FEET else p
+            points[limb] = p - self.sole_offset * t.normal if limb in FEET else p
         result = RetargetResult(q, residuals, tilt, float(min_dist), within, iterations, seconds, points)
         worst = max(residuals, key=residuals.get)
         if residuals[worst] > self.contact_tolerance:
