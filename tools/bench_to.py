@@ -99,7 +99,15 @@ def run_case(model, scenario: str, over: dict, variant: str, out: Path, time_lim
     t0 = time.perf_counter()
     prob = load_problem(scenario, overrides=over, model=model, options=opts)
     load_s = time.perf_counter() - t0
-    res = solver.solve(prob, model)
+    last = {"stage": None}
+
+    def progress(pr):  # a line per stage and every 50 iterations, so a long solve shows where it is
+        if pr.stage != last["stage"] or pr.iteration % 50 == 0:
+            last["stage"] = pr.stage
+            print(f"  {name} {variant}: {pr.stage or 'solve'} iteration {pr.iteration}, violation "
+                  f"{pr.constraint_violation:.1e}, {pr.elapsed:.0f} s", flush=True)
+
+    res = solver.solve(prob, model, progress=progress)
     s = res.stats
     res.save(out / f"{name}_{variant}.npz")
     plot_penetration(out / f"{name}_{variant}_penetration.png",

@@ -165,6 +165,10 @@ class ProblemData:
         if opt.use_keyframe_warm_start and prob.keyframes:
             X = self._keyframe_nominal()
             X[0] = self.x_init
+            if opt.stepping_warm_start:
+                from .warm_start import stepping_guess
+
+                X = stepping_guess(self, X)
         self.x_guess = X
 
     def _sole_height(self, x: np.ndarray) -> float:

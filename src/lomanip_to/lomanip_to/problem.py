@@ -200,6 +200,9 @@ class Options:
     use_keyframe_base_cost: bool = True
     use_keyframe_foot_cost: bool = True
     use_keyframe_warm_start: bool = True
+    #: refine the keyframe warm start into a stepping motion (feet on footholds, per-knot IK;
+    #: warm_start.py); only with use_keyframe_warm_start
+    stepping_warm_start: bool = True
     collision_hard_constraint: bool = True
     collision_penalty: bool = True
     collision_homotopy: bool = True

@@ -213,6 +213,8 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
             args["x0"] = np.clip(z0, args["lbx"], args["ubx"])
             o, tag = dict(base), "main"
         nlp, s = get_solver(wd, data.structure, K, o, threads, tag)
+        if z0 is not None and hom:
+            args["x0"] = np.clip(_feasible_slacks(win, nlp, K, args["x0"], args["p"]), args["lbx"], args["ubx"])
         kind = "surrogate guide" if not last_stage else "final"
         stage_name = f"{label}{kind}"
         cb = _CALLBACKS[id(s)]
@@ -235,6 +237,26 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
             status = f"time limit {opt.time_limit:.0f} s reached"
             break
     return z0, lam_x, lam_g, status, nlp, args, Pm, lbg, ubg, float(sol["f"])
+
+
+def _feasible_slacks(win: Window, nlp: AssembledNLP, K: int, z: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Raise each homotopy slack so its surrogate row holds at ``z``.
+
+    A stage with a sharper surrogate (higher exponent) starts from the previous stage's point,
+    where ``F_new - 1 + s_old`` is negative wherever a sphere is inside the sharper surrogate but
+    was outside the smoother one: a spurious violation of order 1 that ipopt then spends
+    iterations removing (S2 subtask 1: final-stage start violation 0.13).  The slack is free and
+    only penalised, so setting it to ``max(s_old, 1 - F_new)`` costs nothing and starts the stage
+    feasible in those rows."""
+    if not win.st.obj_pairs:
+        return z
+    _, g = nlp.F_nlp(z, p)
+    G = np.array(g).reshape(K, win.G.n)
+    Z = np.array(z, float).reshape(K + 1, win.W.n).copy()
+    rows = [win.G[f"c{i} homotopy surrogate"].start for i in range(len(win.st.obj_pairs))]
+    sl = win.W["slack"]
+    Z[:K, sl] = np.maximum(Z[:K, sl] - np.minimum(G[:, rows], 0.0), Z[:K, sl])
+    return Z.ravel()
 
 
 def _timing_split(st: dict, wall: float) -> dict:

@@ -1,0 +1,202 @@
+"""A kinematically consistent stepping warm start for the knots of a TO problem.
+
+Why: the keyframe nominal (``ProblemData._keyframe_nominal``) moves the base linearly between
+anchors with a fixed posture, so in the warm start both feet slide along with the base: every
+stance foot's no-slip row and every swing foot's height row is violated at the first iterate, and
+ipopt spends most of its iterations discovering the footsteps (S1: 140-210 iterations per
+subtask guide).  Here the contact schedule fixes a foothold per stance interval of each foot,
+the swing foot follows a bump between footholds, held objects' contact points follow the objects'
+nominal poses, the CoM is drawn over the support, and one small IK per knot (CasADi + ipopt,
+warm-started from the previous knot) turns that into joint angles close to the nominal posture.
+
+Footholds, in order of precedence: the interval holds knot 0 (the initial foot), a position given
+in the schedule (``ContactSpec.position`` of a foot: the planner's footsteps), the interval holds a
+keyframe knot (the keyframe's foot), else the nominal stance under the nominal base at the
+interval's middle (+-0.119 m lateral, +0.035 m forward: the G1's standing stance).
+Named simplification: the CoM target is the smoothed centre of the support feet (a static-walking
+proxy, not a dynamic ZMP plan); the TO then finds the dynamics.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+
+from .ik import SOLE_FORWARD, STANCE_HALF_WIDTH
+from .model import FEET, HANDS, G1Model, rpy_to_rot
+
+#: weights of the per-knot tracking IK (metres and radians; posture terms are per joint)
+W_FOOT, W_HAND, W_COM, W_POST, W_BASE_XY = 1e5, 1e3, 30.0, 1.0, 1.0
+#: smoothing of the CoM target over time (s, Gaussian sigma)
+COM_SMOOTHING = 0.15
+
+_CACHE: dict = {}
+
+
+def _tracking_ik(model: G1Model):
+    """Per-knot least-squares IK: soles at (xyz, yaw) level, hand points, CoM xy, posture."""
+    key = id(model)
+    if key in _CACHE:
+        return _CACHE[key]
+    x = ca.SX.sym("x", 35)
+    p = ca.SX.sym("p", 35 + 8 + 6 + 2 + 2)
+    x_ref = p[0:35]
+    feet = [p[35:39], p[39:43]]  # x, y, z, yaw
+    hands = [p[43:46], p[46:49]]
+    w_hand = p[49:51]
+    com_xy = p[51:53]
+    tree = model.symbolic_tree(x)
+    com, _ = model.com_and_momentum(tree)
+    lf = model.limb_frames(tree)
+    cost = 0
+    for i, f in enumerate(FEET):
+        pt, R = lf[f]
+        yaw = feet[i][3]
+        cost += W_FOOT * (ca.sumsqr(pt - feet[i][0:3]) + R[0, 2] ** 2 + R[1, 2] ** 2
+                          + (R[1, 0] * ca.cos(yaw) - R[0, 0] * ca.sin(yaw)) ** 2)
+    for i, h in enumerate(HANDS):
+        cost += W_HAND * w_hand[i] * ca.sumsqr(lf[h][0] - hands[i])
+    cost += W_COM * ca.sumsqr(com[0:2] - com_xy)
+    cost += W_POST * ca.sumsqr(x[6:] - x_ref[6:]) + W_BASE_XY * ca.sumsqr(x[0:2] - x_ref[0:2])
+    cost += 5.0 * ca.sumsqr(x[3:5] - x_ref[3:5]) + 5.0 * (x[2] - x_ref[2]) ** 2
+    s = ca.nlpsol("stepping_ik", "ipopt", {"x": x, "p": p, "f": cost}, {"print_time": False, "ipopt": {
+        "print_level": 0, "sb": "yes", "max_iter": 100, "tol": 1e-6, "linear_solver": "mumps"}})
+    _CACHE[key] = s
+    return s
+
+
+def _intervals(data, foot: str) -> list:
+    """[(k0, k1, contact)] maximal runs of knots where ``foot`` touches the same surface."""
+    K = data.grid.K
+    out, k = [], 0
+    while k < K:
+        c = data.contact(k, foot)
+        if c is None:
+            k += 1
+            continue
+        k1 = k
+        while k1 + 1 < K and data.contact(k1 + 1, foot) is not None and data.contact(k1 + 1, foot).object_id == c.object_id:
+            k1 += 1
+        out.append((k, k1, c))
+        k = k1 + 1
+    return out
+
+
+def _foot_pose(model: G1Model, x: np.ndarray, foot: str) -> np.ndarray:
+    pt, R = model.numeric(x)["limbs"][foot]
+    return np.array([pt[0], pt[1], pt[2], math.atan2(R[1, 0], R[0, 0])])
+
+
+def footholds(data, x_nom: np.ndarray) -> dict:
+    """foot -> K x 4 (sole centre xyz, yaw) targets along the horizon (stance + swing)."""
+    model, K, t = data.model, data.grid.K, data.grid.t
+    out = {}
+    kf_x = {k: kf.x() for k, kf in data.kf_knots.items()}
+    for side, f in zip((1.0, -1.0), FEET):
+        runs = _intervals(data, f)
+        holds = []
+        for k0, k1, c in runs:
+            h = data._surface_height(c)
+            if k0 == 0:
+                pose = _foot_pose(model, data.x_init, f)
+            elif c.position is not None and len(c.position) >= 2:
+                yaw = float(x_nom[(k0 + k1) // 2, 5])
+                pose = np.array([c.position[0], c.position[1], h, yaw])
+            else:
+                kk = [k for k in kf_x if k0 <= k <= k1]
+                if kk:
+                    pose = _foot_pose(model, kf_x[kk[0]], f)
+                else:
+                    xb = x_nom[(k0 + k1) // 2]
+                    yaw = float(xb[5])
+                    fwd, lat = np.array([math.cos(yaw), math.sin(yaw)]), np.array([-math.sin(yaw), math.cos(yaw)])
+                    xy = xb[:2] + SOLE_FORWARD * fwd + side * STANCE_HALF_WIDTH * lat
+                    pose = np.array([xy[0], xy[1], h, yaw])
+            pose[2] = h
+            holds.append((k0, k1, pose))
+        P = np.zeros((K, 4))
+        if not holds:  # never in contact: keep the nominal feet
+            for k in range(K):
+                P[k] = _foot_pose(model, x_nom[k], f)
+            out[f] = P
+            continue
+        for i, (k0, k1, pose) in enumerate(holds):
+            P[k0:k1 + 1] = pose
+            nxt = holds[i + 1] if i + 1 < len(holds) else None
+            if nxt is None:
+                P[k1 + 1:] = pose
+                continue
+            ka, kb, pb = k1, nxt[0], nxt[2]
+            for k in range(ka + 1, kb):
+                s = (t[k] - t[ka]) / max(t[kb] - t[ka], 1e-9)
+                q = pose + s * (pb - pose)
+                q[3] = pose[3] + s * math.remainder(pb[3] - pose[3], 2 * math.pi)
+                q[2] = data._swing_height(k, f)
+                P[k] = q
+        first = holds[0]
+        P[:first[0]] = first[2]
+        out[f] = P
+    return out
+
+
+def hand_targets(data) -> dict:
+    """hand -> (K x 3 points, K weights): contact points following the objects' nominal poses."""
+    K = data.grid.K
+    out = {}
+    for h in HANDS:
+        P, w = np.zeros((K, 3)), np.zeros(K)
+        for k in range(K):
+            c = data.contact(k, h)
+            if c is None:
+                continue
+            k0 = k
+            while k0 > 0 and data.contact(k0 - 1, h) is not None and data.contact(k0 - 1, h).object_id == c.object_id:
+                k0 -= 1
+            pos = np.asarray(data.contact(k0, h).position, float)
+            if c.object_id in data.obj_nom:
+                a, b = data.obj_nom[c.object_id][k0], data.obj_nom[c.object_id][k]
+                pos = b[:3] + rpy_to_rot(b[3:]) @ (rpy_to_rot(a[3:]).T @ (pos - a[:3]))
+            P[k], w[k] = pos, 1.0
+        out[h] = (P, w)
+    return out
+
+
+def com_targets(data, feet: dict) -> np.ndarray:
+    """K x 2: centre of the supporting soles, smoothed in time."""
+    K, t = data.grid.K, data.grid.t
+    raw = np.zeros((K, 2))
+    for k in range(K):
+        sup = [feet[f][k, :2] for f in FEET if data.contact(k, f) is not None]
+        raw[k] = np.mean(sup, axis=0) if sup else 0.5 * (feet[FEET[0]][k, :2] + feet[FEET[1]][k, :2])
+    out = np.zeros_like(raw)
+    for k in range(K):
+        wts = np.exp(-0.5 * ((t - t[k]) / COM_SMOOTHING) ** 2)
+        out[k] = wts @ raw / wts.sum()
+    return out
+
+
+def stepping_guess(data, x_nom: np.ndarray) -> np.ndarray:
+    """K x 35 configurations: ``x_nom``'s base path and posture, with the feet on footholds."""
+    model, K = data.model, data.grid.K
+    feet = footholds(data, x_nom)
+    hands = hand_targets(data)
+    com = com_targets(data, feet)
+    ik = _tracking_ik(model)
+    lbx = np.concatenate([np.full(3, -np.inf), [-0.6, -0.6, -np.inf], model.q_lower])
+    ubx = np.concatenate([np.full(3, np.inf), [0.6, 0.6, np.inf], model.q_upper])
+    X = np.array(x_nom, float)
+    X[0] = data.x_init
+    prev = X[0].copy()
+    for k in range(1, K):
+        p = np.concatenate([x_nom[k], feet[FEET[0]][k], feet[FEET[1]][k], hands[HANDS[0]][0][k],
+                            hands[HANDS[1]][0][k], [hands[HANDS[0]][1][k], hands[HANDS[1]][1][k]], com[k]])
+        x0 = np.clip(prev, lbx, ubx)
+        x0[5] = x_nom[k, 5]
+        sol = ik(x0=x0, p=p, lbx=lbx, ubx=ubx)
+        xk = np.array(sol["x"]).ravel()
+        if np.all(np.isfinite(xk)):
+            X[k] = xk
+            prev = xk
+    return X

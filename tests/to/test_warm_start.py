@@ -1,0 +1,67 @@
+"""The stepping warm start: stance feet stay on their footholds, swing feet lift, hands follow."""
+import numpy as np
+
+from lomanip_to.discretize import ProblemData
+from lomanip_to.fixtures import load_problem
+from lomanip_to.model import FEET, HANDS
+from lomanip_to.warm_start import footholds, hand_targets
+
+
+def _limbs(g1, X):
+    return [g1.numeric(x)["limbs"] for x in X]
+
+
+def test_stance_feet_do_not_slide_and_swing_feet_lift(g1):
+    data = ProblemData(load_problem("s1_basket", model=g1), g1)
+    X = data.x_guess
+    limbs = _limbs(g1, X)
+    K = data.grid.K
+    for f in FEET:
+        for k in range(K - 1):
+            c, cn = data.contact(k, f), data.contact(k + 1, f)
+            if c is not None and cn is not None and c.object_id == cn.object_id:
+                slide = np.linalg.norm(limbs[k + 1][f][0][:2] - limbs[k][f][0][:2])
+                assert slide < 0.01, f"{f} slides {slide:.3f} m at t={data.grid.t[k]:.1f}"
+            if c is not None:  # sole on its surface and level
+                assert abs(limbs[k][f][0][2] - data._surface_height(c)) < 0.01
+                assert abs(limbs[k][f][1][2, 2]) > 0.99
+        swing = [k for k in range(K) if data.contact(k, f) is None]
+        assert swing, f"{f} never swings in S1"
+        assert max(limbs[k][f][0][2] for k in swing) > 0.04  # lifted, not dragged
+
+
+def test_footholds_start_at_the_initial_feet_and_walk_towards_the_keyframes(g1):
+    data = ProblemData(load_problem("s1_basket", model=g1), g1)
+    x0 = data.x_init
+    feet = footholds(data, np.tile(x0, (data.grid.K, 1)))
+    init = g1.numeric(x0)["limbs"]
+    for f in FEET:
+        assert np.allclose(feet[f][0, :3], init[f][0], atol=1e-6)
+    # with the keyframe nominal, the feet at the first keyframe are the keyframe's feet
+    k_kf, kf = min(data.kf_knots.items())
+    kf_feet = g1.numeric(kf.x())["limbs"]
+    for f in FEET:
+        assert np.linalg.norm(g1.numeric(data.x_guess[k_kf])["limbs"][f][0][:2] - kf_feet[f][0][:2]) < 0.02
+
+
+def test_hands_reach_their_contacts_in_the_warm_start(g1):
+    data = ProblemData(load_problem("case_lift_box", model=g1), g1)
+    limbs = _limbs(g1, data.x_guess)
+    targets = hand_targets(data)
+    n = 0
+    for k in range(1, data.grid.K):
+        for h in HANDS:
+            if data.contact(k, h) is None:
+                continue
+            assert np.linalg.norm(limbs[k][h][0] - targets[h][0][k]) < 0.02
+            n += 1
+    assert n > 0
+    # the box is lifted in this case: the targets follow its nominal pose up
+    assert targets[HANDS[0]][0][-1][2] > targets[HANDS[0]][0][[k for k in range(data.grid.K)
+                                                               if data.contact(k, HANDS[0])][0]][2] + 0.05
+
+
+def test_no_keyframe_warm_start_keeps_the_initial_posture(g1):
+    prob = load_problem("s1_basket", model=g1, options={"use_keyframe_warm_start": False})
+    data = ProblemData(prob, g1)
+    assert np.allclose(data.x_guess, data.x_init)
