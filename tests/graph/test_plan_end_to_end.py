@@ -81,6 +81,7 @@ def test_bad_requests_get_their_code_and_the_graph_keeps_serving(graph, client):
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(2400)  # a whole TO solve through the graph: minutes on 2 shared cores
 def test_a_client_process_gets_the_trajectory_and_the_bag_reads_back(graph):
     proc, d = graph
     env = graph_env()

@@ -71,6 +71,19 @@ def test_lift_light_box(g1):
     m_box = prob.object("box").mass
     acc = (vel[k + 1, :3] - vel[k, :3]) / (t[k + 1] - t[k])
     assert np.allclose(m_box * acc, f_on_box + m_box * np.array([0, 0, -9.81]), atol=1e-3)
+    # hands are patch contacts: their moments stay inside the patch's wrench bounds
+    from lomanip_to.transcription import HAND_PATCH_HALF, HAND_TORSION
+
+    for h in ("left_hand", "right_hand"):
+        for k in range(len(t)):
+            n = res.normals_knots[h][k]
+            if not np.any(n):
+                assert np.allclose(res.torques_knots[h][k], 0.0)
+                continue
+            fn = float(res.forces_knots[h][k] @ n)
+            tau = res.torques_knots[h][k]
+            assert abs(tau @ n) <= HAND_TORSION * fn + 1e-3
+            assert np.linalg.norm(tau - (tau @ n) * n) <= np.sqrt(2) * HAND_PATCH_HALF * fn + 1e-3
 
 
 def test_failed_solve_is_reported_as_failed(g1):

@@ -302,6 +302,7 @@ class ProblemData:
                 c = self.contact(k, h)
                 a = 1.0 if c is not None else 0.0
                 setb(f"u_{h}", k, -a, a)
+                setb(f"tau_{h}", k, -0.1 * a, 0.1 * a)  # patch moment, m g x 1 m units
             for oid, j in self.midx.items():
                 mode = self.obj_mode(k, oid)
                 prev = self.obj_mode(k - 1, oid) if k > 0 else "fixed"
@@ -361,6 +362,7 @@ class ProblemData:
                 if self.contact(k, h) is None:
                     rows(f"{h} contact position", k, -INF, INF)
                 rows(f"{h} friction cone", k, 0 if self.contact(k, h) is not None else -INF, INF)
+                rows(f"{h} patch moment", k, 0 if self.contact(k, h) is not None else -INF, INF)
             for oid, j in self.midx.items():
                 mode = self.obj_mode(k, oid)
                 if last:

@@ -491,6 +491,7 @@ def extract(model: G1Model, data: ProblemData, win: Window, nlp: AssembledNLP, z
                     T[k] += np.cross(ci - pt, u[i])
             else:
                 F[k] = Wm[W[f"u_{limb}"], k] * mg
+                T[k] = Wm[W[f"tau_{limb}"], k] * mg  # patch moment about the hand point
                 if c is not None:
                     n = Pm[win.P[f"{limb}_n"], k]
                     sel = Pm[win.P[f"{limb}_sel"], k]

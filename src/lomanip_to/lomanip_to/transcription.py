@@ -43,6 +43,10 @@ from .layout import Layout, sx_split
 from .model import FEET, GRAVITY, HANDS, SOLE_CORNERS, G1Model, rpy_rate_matrix, rpy_to_rot, rot_z
 
 G = 9.81
+#: half size (m) of the hand contact patch (the G1 hand's palm pressed on a face) and the torsional
+#: friction coefficient times its effective radius (m): bounds of the hand patch moment
+HAND_PATCH_HALF = 0.03
+HAND_TORSION = 0.01
 
 
 @dataclass(frozen=True)
@@ -68,6 +72,8 @@ def var_layout(st: Structure) -> Layout:
         L.add(f"u_{f}", 12)
     for h in HANDS:
         L.add(f"u_{h}", 3)
+    for h in HANDS:
+        L.add(f"tau_{h}", 3)  # patch moment about the hand point (units of m g x 1 m)
     for j in range(st.n_obj):
         L.add(f"o{j}_pose", 6)
         L.add(f"o{j}_vel", 6)
@@ -207,7 +213,7 @@ class Window:
         for h in HANDS:
             forces.append((limbs[h][0], wa[f"u_{h}"]))
         sum_u = sum(u for _, u in forces)
-        torque = sum(ca.cross(pt - wa["com"], u) for pt, u in forces)
+        torque = sum(ca.cross(pt - wa["com"], u) for pt, u in forces) + sum(wa[f"tau_{h}"] for h in HANDS)
 
         # ---- robot dynamics (window rows)
         add("kinematic integration", wb["x"] - wa["x"] - dt * wb["xd"])
@@ -246,6 +252,7 @@ class Window:
         # ---- hands
         mu_h = pp["mu_hand"]
         obj_forces = [[] for _ in range(M)]  # (point, force in robot-weight units) on object j
+        obj_moments = [[] for _ in range(M)]  # pure moments (hand patches) on object j
         for h in HANDS:
             sel = pp[f"{h}_sel"]
             loc = pp[f"{h}_loc"]
@@ -264,8 +271,19 @@ class Window:
             un = ca.dot(u, n)
             add(f"{h} friction cone", ca.vertcat(un, mu_h * un - ca.dot(u, t1), mu_h * un + ca.dot(u, t1),
                                                  mu_h * un - ca.dot(u, t2), mu_h * un + ca.dot(u, t2)))
+            # patch contact (paper: hands as patches): the palm pressed on the face can exert a
+            # moment, bounded like a rectangle's contact wrench: tilting moments keep the centre of
+            # pressure inside the patch (|tau.t| <= half size * normal force), the moment about the
+            # normal is bounded by torsional friction.  Without it two point grips cannot exert any
+            # torque about the line between them (S2's carried box).
+            tau = wa[f"tau_{h}"]
+            a = HAND_PATCH_HALF
+            add(f"{h} patch moment", ca.vertcat(a * un - ca.dot(tau, t1), a * un + ca.dot(tau, t1),
+                                                a * un - ca.dot(tau, t2), a * un + ca.dot(tau, t2),
+                                                HAND_TORSION * un - ca.dot(tau, n), HAND_TORSION * un + ca.dot(tau, n)))
             for j in range(M):
                 obj_forces[j].append((pt, -sel[j + 1] * u))
+                obj_moments[j].append(-sel[j + 1] * tau)
             cost += pp[f"{h}_w_track"] * ca.sumsqr(pt - target)
 
         # ---- objects
@@ -282,7 +300,7 @@ class Window:
             cpts = [pa + Ra @ corners[:, i] for i in range(4)]
             allf = list(obj_forces[j]) + [(cpts[i], us[:, i]) for i in range(4)]
             F = sum(u for _, u in allf)
-            T = sum(ca.cross(pt - pa, u) for pt, u in allf)
+            T = sum(ca.cross(pt - pa, u) for pt, u in allf) + sum(obj_moments[j])
             # linear: (v_{k+1} - v_k) = dt (m_r g / m_j * F + g)
             add(f"o{j} linear dynamics", (vb[0:3] - va[0:3]) - dt * (mass * G / mj * F + ca.DM(GRAVITY)))
             Ib = ca.reshape(pp[f"o{j}_I"], 3, 3)
@@ -356,7 +374,8 @@ class Window:
         # ---- stage costs
         x, xd = wa["x"], wa["xd"]
         xr = pp["x_ref"]
-        u_all = ca.vertcat(*[wa[f"u_{f}"] for f in FEET], *[wa[f"u_{h}"] for h in HANDS])
+        u_all = ca.vertcat(*[wa[f"u_{f}"] for f in FEET], *[wa[f"u_{h}"] for h in HANDS],
+                           *[10.0 * wa[f"tau_{h}"] for h in HANDS])
         L_reg = (pp["w_post"] * ca.sumsqr(x[6:] - xr[6:]) + pp["w_xd"] * ca.sumsqr(xd[6:])
                  + 10 * pp["w_xd"] * ca.sumsqr(xd[0:6]) + pp["w_acc"] * ca.sumsqr(wb["xd"] - xd)
                  + pp["w_force"] * ca.sumsqr(u_all) + pp["w_upright"] * (x[3] ** 2 + x[4] ** 2))
