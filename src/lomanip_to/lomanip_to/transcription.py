@@ -275,7 +275,8 @@ class Window:
             # moment, bounded like a rectangle's contact wrench: tilting moments keep the centre of
             # pressure inside the patch (|tau.t| <= half size * normal force), the moment about the
             # normal is bounded by torsional friction.  Without it two point grips cannot exert any
-            # torque about the line between them (S2's carried box).
+            # torque about the line between them (S2's carried box).  Named simplification: the
+            # hand's orientation is not constrained to lie flat on the face; the bounds assume it.
             tau = wa[f"tau_{h}"]
             a = HAND_PATCH_HALF
             add(f"{h} patch moment", ca.vertcat(a * un - ca.dot(tau, t1), a * un + ca.dot(tau, t1),
