@@ -65,3 +65,32 @@ def test_no_keyframe_warm_start_keeps_the_initial_posture(g1):
     prob = load_problem("s1_basket", model=g1, options={"use_keyframe_warm_start": False})
     data = ProblemData(prob, g1)
     assert np.allclose(data.x_guess, data.x_init)
+
+
+def _worst_body_penetration(g1, data, X):
+    from lomanip_to.discretize import obj_prims_world
+    from lomanip_to.warm_start import BODY_GROUPS
+
+    worst = 0.0
+    for o in data.prob.objects:
+        if o.id in data.midx:
+            continue
+        for x in X:
+            c = g1.numeric(x)["spheres"]
+            for si, sph in enumerate(g1.spheres):
+                if sph.group not in BODY_GROUPS:
+                    continue
+                for ctr, R, he in obj_prims_world(o):
+                    q = np.abs(R.T @ (c[si] - ctr)) - he
+                    worst = min(worst, np.linalg.norm(np.maximum(q, 0)) + min(q.max(), 0) - sph.radius)
+    return -worst
+
+
+def test_warm_start_keeps_the_body_further_out_of_fixed_furniture(g1):
+    """S2: standing up at the table with the box, the nominal puts the pelvis ~11 cm into the
+    table top; the warm start's IK pushes the body out as far as the footholds allow."""
+    data = ProblemData(load_problem("s2_trolley", model=g1), g1)
+    nominal = _worst_body_penetration(g1, data, data._keyframe_nominal())
+    guess = _worst_body_penetration(g1, data, data.x_guess)
+    assert nominal > 0.08
+    assert guess < 0.75 * nominal, (guess, nominal)

@@ -26,9 +26,16 @@ import numpy as np
 
 from .ik import SOLE_FORWARD, STANCE_HALF_WIDTH
 from .model import FEET, HANDS, G1Model, rpy_to_rot
+from .transcription import box_sphere_distance
 
 #: weights of the per-knot tracking IK (metres and radians; posture terms are per joint)
 W_FOOT, W_HAND, W_COM, W_POST, W_BASE_XY = 1e5, 1e3, 30.0, 1.0, 1.0
+#: weight of the penetration penalty against fixed objects, and how many of their primitives
+#: the IK takes (a nominal path through furniture, e.g. standing up at the S2 table, put the pelvis
+#: 10 cm into the table top; the TO's guide stage then converged on the wrong side of it)
+W_COLLISION, MAX_FIXED_PRIMS = 1e4, 16
+#: sphere groups kept out of furniture in the warm start (hands and forearms may touch it)
+BODY_GROUPS = ("pelvis", "torso", "head", "left_thigh", "right_thigh", "left_shin", "right_shin")
 #: smoothing of the CoM target over time (s, Gaussian sigma)
 COM_SMOOTHING = 0.15
 #: fraction of the way from the mid-feet point to the support centre the CoM target moves
@@ -38,13 +45,15 @@ COM_SHIFT = 0.0
 _CACHE: dict = {}
 
 
-def _tracking_ik(model: G1Model):
-    """Per-knot least-squares IK: soles at (xyz, yaw) level, hand points, CoM xy, posture."""
-    key = id(model)
+def _tracking_ik(model: G1Model, n_prims: int):
+    """Per-knot least-squares IK: soles at (xyz, yaw) level, hand points, CoM xy, posture, body
+    spheres out of ``n_prims`` fixed box primitives."""
+    key = (id(model), n_prims)
     if key in _CACHE:
         return _CACHE[key]
     x = ca.SX.sym("x", 35)
-    p = ca.SX.sym("p", 35 + 8 + 6 + 2 + 2)
+    n_base = 35 + 8 + 6 + 2 + 2
+    p = ca.SX.sym("p", n_base + 15 * n_prims)
     x_ref = p[0:35]
     feet = [p[35:39], p[39:43]]  # x, y, z, yaw
     hands = [p[43:46], p[46:49]]
@@ -64,6 +73,14 @@ def _tracking_ik(model: G1Model):
     cost += W_COM * ca.sumsqr(com[0:2] - com_xy)
     cost += W_POST * ca.sumsqr(x[6:] - x_ref[6:]) + W_BASE_XY * ca.sumsqr(x[0:2] - x_ref[0:2])
     cost += 5.0 * ca.sumsqr(x[3:5] - x_ref[3:5]) + 5.0 * (x[2] - x_ref[2]) ** 2
+    centres = model.sphere_centers(tree)
+    body = [i for i, sp in enumerate(model.spheres) if sp.group in BODY_GROUPS]
+    for j in range(n_prims):
+        q = p[n_base + 15 * j:n_base + 15 * (j + 1)]
+        ctr, R, half = q[0:3], ca.reshape(q[3:12], 3, 3), q[12:15]
+        for i in body:
+            d = box_sphere_distance(R.T @ (centres[i] - ctr), half, model.spheres[i].radius)
+            cost += W_COLLISION * ca.fmin(d, 0) ** 2
     s = ca.nlpsol("stepping_ik", "ipopt", {"x": x, "p": p, "f": cost}, {"print_time": False, "ipopt": {
         "print_level": 0, "sb": "yes", "max_iter": 100, "tol": 1e-6, "linear_solver": "mumps"}})
     _CACHE[key] = s
@@ -185,13 +202,35 @@ def com_targets(data, feet: dict) -> np.ndarray:
     return out
 
 
+def fixed_primitives(data) -> np.ndarray:
+    """IK parameters (centre, R column-major, half extents) of the fixed objects' primitives that
+    come within 0.5 m of the nominal base path (at most ``MAX_FIXED_PRIMS``, nearest first)."""
+    from .discretize import obj_prims_world
+
+    base = data.x_guess_nominal[:, :3] if hasattr(data, "x_guess_nominal") else None
+    prims = [pr for o in data.prob.objects if o.id not in data.midx for pr in obj_prims_world(o)]
+    scored = []
+    for c, R, he in prims:
+        if base is None:
+            dist = 0.0
+        else:
+            q = np.abs((base - c) @ R) - he
+            dist = float(np.min(np.linalg.norm(np.maximum(q, 0), axis=1)))
+        if dist < 0.5:
+            scored.append((dist, np.concatenate([c, np.asarray(R).ravel(order="F"), he])))
+    scored.sort(key=lambda s: s[0])
+    return np.concatenate([v for _, v in scored[:MAX_FIXED_PRIMS]]) if scored else np.zeros(0)
+
+
 def stepping_guess(data, x_nom: np.ndarray) -> np.ndarray:
     """K x 35 configurations: ``x_nom``'s base path and posture, with the feet on footholds."""
     model, K = data.model, data.grid.K
     feet = footholds(data, x_nom)
     hands = hand_targets(data)
     com = com_targets(data, feet)
-    ik = _tracking_ik(model)
+    data.x_guess_nominal = np.asarray(x_nom, float)
+    prims = fixed_primitives(data)
+    ik = _tracking_ik(model, len(prims) // 15)
     lbx = np.concatenate([np.full(3, -np.inf), [-0.6, -0.6, -np.inf], model.q_lower])
     ubx = np.concatenate([np.full(3, np.inf), [0.6, 0.6, np.inf], model.q_upper])
     X = np.array(x_nom, float)
@@ -199,7 +238,7 @@ def stepping_guess(data, x_nom: np.ndarray) -> np.ndarray:
     prev = X[0].copy()
     for k in range(1, K):
         p = np.concatenate([x_nom[k], feet[FEET[0]][k], feet[FEET[1]][k], hands[HANDS[0]][0][k],
-                            hands[HANDS[1]][0][k], [hands[HANDS[0]][1][k], hands[HANDS[1]][1][k]], com[k]])
+                            hands[HANDS[1]][0][k], [hands[HANDS[0]][1][k], hands[HANDS[1]][1][k]], com[k], prims])
         x0 = np.clip(prev, lbx, ubx)
         x0[5] = x_nom[k, 5]
         sol = ik(x0=x0, p=p, lbx=lbx, ubx=ubx)
