@@ -92,7 +92,10 @@ class TONode(Node):
         log.info(f"{stats.status_message()}; {stats.iterations} iterations, build {stats.build_time:.1f} s, "
                  f"solve {stats.solve_time:.1f} s")
         if not result.success:
-            failed = [name for name, c in stats.checks.items() if not c.get("ok", False)]
+            # name each failed check with its value and where it occurs, e.g.
+            # "torque_limits 1.3 at right_wrist_pitch_joint t=2.10"
+            failed = [f"{name} {c.get('value', float('nan')):.3g} at {c.get('where', '?')}"
+                      for name, c in stats.checks.items() if not c.get("ok", False)]
             reason = stats.status_message() + (f"; failed checks: {', '.join(failed)}" if failed else "")
             response.error_code = ErrorCode(val=TO_NOT_CONVERGED, message=reason)
             return response

@@ -47,6 +47,9 @@ G = 9.81
 #: friction coefficient times its effective radius (m): bounds of the hand patch moment
 HAND_PATCH_HALF = 0.03
 HAND_TORSION = 0.01
+#: scale of the hand moments in the force regulariser: a moment is used only where the task needs
+#: it (with 10, the push's hands carried moments that the wrists could not hold: torque check failed)
+HAND_MOMENT_COST = 100.0
 
 
 @dataclass(frozen=True)
@@ -376,7 +379,7 @@ class Window:
         x, xd = wa["x"], wa["xd"]
         xr = pp["x_ref"]
         u_all = ca.vertcat(*[wa[f"u_{f}"] for f in FEET], *[wa[f"u_{h}"] for h in HANDS],
-                           *[10.0 * wa[f"tau_{h}"] for h in HANDS])
+                           *[HAND_MOMENT_COST * wa[f"tau_{h}"] for h in HANDS])
         L_reg = (pp["w_post"] * ca.sumsqr(x[6:] - xr[6:]) + pp["w_xd"] * ca.sumsqr(xd[6:])
                  + 10 * pp["w_xd"] * ca.sumsqr(xd[0:6]) + pp["w_acc"] * ca.sumsqr(wb["xd"] - xd)
                  + pp["w_force"] * ca.sumsqr(u_all) + pp["w_upright"] * (x[3] ** 2 + x[4] ** 2))
