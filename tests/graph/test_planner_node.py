@@ -19,7 +19,7 @@ pytestmark = pytest.mark.graph
 def graph(tmp_path_factory):
     d = tmp_path_factory.mktemp("planner")
     with ros_process(["-m", "lomanip_sim.sim_node", "--ros-args", "-p", "camera_rate:=2.0"], d / "sim.log") as sim, \
-         ros_process(["-m", "lomanip_planner.planner_node", "--ros-args", "-p", "perception_timeout:=4.0"],
+         ros_process(["-m", "lomanip_planner.planner_node", "--ros-args", "-p", "perception_timeout:=8.0"],
                      d / "planner.log") as planner:
         yield sim, planner, d
 
@@ -85,6 +85,8 @@ def test_second_request_while_planning_is_busy_and_the_first_is_unharmed(graph, 
     from lomanip_msgs.srv import ExtractContacts, PlanTask
 
     def slow_failure(request, response):
+        # long enough for the second request (sent after 1 s) to find plan 1 running, well inside
+        # the planner's 8 s perception timeout even on a loaded machine (4 s was flaky)
         time.sleep(3.0)
         response.error_code = ErrorCode(val=ErrorCode.NO_HUMAN_FOUND, message="stand-in: no person in subtask 0")
         return response
