@@ -202,20 +202,17 @@ def com_targets(data, feet: dict) -> np.ndarray:
     return out
 
 
-def fixed_primitives(data) -> np.ndarray:
+def fixed_primitives(data, x_nom: np.ndarray) -> np.ndarray:
     """IK parameters (centre, R column-major, half extents) of the fixed objects' primitives that
     come within 0.5 m of the nominal base path (at most ``MAX_FIXED_PRIMS``, nearest first)."""
     from .discretize import obj_prims_world
 
-    base = data.x_guess_nominal[:, :3] if hasattr(data, "x_guess_nominal") else None
+    base = np.asarray(x_nom, float)[:, :3]
     prims = [pr for o in data.prob.objects if o.id not in data.midx for pr in obj_prims_world(o)]
     scored = []
     for c, R, he in prims:
-        if base is None:
-            dist = 0.0
-        else:
-            q = np.abs((base - c) @ R) - he
-            dist = float(np.min(np.linalg.norm(np.maximum(q, 0), axis=1)))
+        q = np.abs((base - c) @ R) - he
+        dist = float(np.min(np.linalg.norm(np.maximum(q, 0), axis=1)))
         if dist < 0.5:
             scored.append((dist, np.concatenate([c, np.asarray(R).ravel(order="F"), he])))
     scored.sort(key=lambda s: s[0])
@@ -228,8 +225,7 @@ def stepping_guess(data, x_nom: np.ndarray) -> np.ndarray:
     feet = footholds(data, x_nom)
     hands = hand_targets(data)
     com = com_targets(data, feet)
-    data.x_guess_nominal = np.asarray(x_nom, float)
-    prims = fixed_primitives(data)
+    prims = fixed_primitives(data, x_nom)
     ik = _tracking_ik(model, len(prims) // 15)
     lbx = np.concatenate([np.full(3, -np.inf), [-0.6, -0.6, -np.inf], model.q_lower])
     ubx = np.concatenate([np.full(3, np.inf), [0.6, 0.6, np.inf], model.q_upper])
