@@ -99,7 +99,7 @@ class S2TrolleyParams(CommonParams):
     table_yaw: float = 0.0
     trolley_mass: float = 8.0
     trolley_size: Vec3 = (0.80, 0.50, 0.35)
-    trolley_position: Vec2 = (0.90, -1.10)
+    trolley_position: Vec2 = (0.20, -1.10)
     trolley_yaw: float = 0.0
     trolley_handle_height: float = 0.85
     wheel_radius: float = 0.06

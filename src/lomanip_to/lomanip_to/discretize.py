@@ -15,6 +15,7 @@ import numpy as np
 from .model import FEET, HANDS, LIMBS, SOLE_CENTER, G1Model, rot_to_rpy, rpy_to_rot
 from .problem import FLOOR, STANCE, WALKING, Problem, SceneObject
 from .transcription import Structure, Window
+from .route import footprint_of, point_along, shortest_route
 
 INF = np.inf
 
@@ -158,9 +159,16 @@ class ProblemData:
         for kf in prob.keyframes:
             kf_by_sub.setdefault(kf.subtask_index, kf)
         self.kf_knots = {}
+        #: keyframes after the horizon (a segment that ends before its subtask's keyframe, e.g. the
+        #: walk to the trolley's handle): they steer the nominal and the last footholds, no cost
+        self.kf_after = []
         for kf in prob.keyframes:
             t = prob.keyframe_time(kf)
+            if t > self.grid.t[-1] + 1e-6:
+                self.kf_after.append((t, kf))
+                continue
             self.kf_knots[int(np.argmin(np.abs(self.grid.t - t)))] = kf
+        self.kf_after.sort(key=lambda a: a[0])
         X = np.tile(self.x_init, (K, 1))
         if opt.use_keyframe_warm_start and prob.keyframes:
             X = self._keyframe_nominal()
@@ -185,28 +193,61 @@ class ProblemData:
         anchors = [(0.0, self.x_init.copy())]
         for kf in sorted(prob.keyframes, key=prob.keyframe_time):
             anchors.append((prob.keyframe_time(kf), kf.x()))
+            if anchors[-1][0] > t[-1] + 1e-6:
+                break  # one anchor after the horizon is enough to head towards it
         h = [self._sole_height(x) for _, x in anchors]
         stand = self.x_init.copy()
         h_stand = self._sole_height(stand)
         X = np.tile(anchors[-1][1], (len(t), 1))
+        self.routes = [self._base_route(ta, xa, tb, xb) for (ta, xa), (tb, xb) in zip(anchors, anchors[1:])]
         for k, tk in enumerate(t):
             for i in range(len(anchors) - 1):
                 (ta, xa), (tb, xb) = anchors[i], anchors[i + 1]
                 if not ta - 1e-9 <= tk <= tb + 1e-9:
                     continue
-                s = (tk - ta) / max(tb - ta, 1e-9)
+                s = self._walk_fraction(ta, tk, tb)
                 wa = max(0.0, 1.0 - (tk - ta) / blend_time)
                 wb = max(0.0, 1.0 - (tb - tk) / blend_time)
                 if wa + wb > 1.0:
                     wa, wb = wa / (wa + wb), wb / (wa + wb)
                 ws = 1.0 - wa - wb
                 x = wa * xa + wb * xb + ws * stand
-                x[[0, 1, 5]] = (1 - s) * xa[[0, 1, 5]] + s * xb[[0, 1, 5]]
+                x[[0, 1]] = point_along(self.routes[i], s)
+                x[5] = (1 - s) * xa[5] + s * xb[5]
                 sup = (1 - s) * h[i] + s * h[i + 1]
                 x[2] = wa * xa[2] + wb * xb[2] + ws * (stand[2] - h_stand + sup)
                 X[k] = x
                 break
         return X
+
+    def _walking_time(self, t: float) -> float:
+        """Time spent in walking phases up to ``t``."""
+        return sum(max(0.0, min(t, ph.end) - ph.start) for ph in self.prob.phases if ph.phase_type == WALKING)
+
+    def _walk_fraction(self, ta: float, t: float, tb: float) -> float:
+        """How far along its route the base is at ``t`` between anchors at ta and tb: the share of
+        the walking time between them already walked (the base moves while stepping, not while
+        standing to grasp), or the share of time if there is no walking in between."""
+        total = self._walking_time(tb) - self._walking_time(ta)
+        if total < 1e-6:
+            return (t - ta) / max(tb - ta, 1e-9)
+        return min(1.0, max(0.0, (self._walking_time(t) - self._walking_time(ta)) / total))
+
+    def _base_route(self, ta: float, xa: np.ndarray, tb: float, xb: np.ndarray) -> np.ndarray:
+        """Floor route of the base from anchor a to anchor b round the objects the robot neither
+        touches nor moves at ta (:mod:`lomanip_to.route`), at their nominal poses at ta.  An object
+        the robot walks up to (the trolley's handle) is an obstacle on the way; the route ends
+        next to it, since an end point near an obstacle shrinks that obstacle's clearance."""
+        k0 = int(np.argmin(np.abs(self.grid.t - ta)))
+        ph = self.prob.phases[self.grid.phase[k0]]
+        touched = {c.object_id for c in ph.contacts.values()} | set(ph.objects)
+        obstacles = []
+        for o in self.prob.objects:
+            if o.id in touched or not o.primitives:
+                continue
+            pose = self.obj_nom[o.id][k0] if o.id in self.obj_nom else np.concatenate([np.asarray(o.position, float), o.rpy()])
+            obstacles.append(footprint_of(o, pose[:3], pose[3:]))
+        return shortest_route(xa[:2], xb[:2], obstacles)
 
     def _choose_pairs(self):
         """Minimal collision set: sphere groups from the options x object primitives whose

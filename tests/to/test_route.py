@@ -1,0 +1,75 @@
+"""Floor routes round object footprints (lomanip_to.route) and their use in the nominal."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lomanip_to import solver
+from lomanip_to.discretize import ProblemData
+from lomanip_to.fixtures import load_problem
+from lomanip_to.route import ROUTE_CLEARANCE, Footprint, point_along, shortest_route
+
+
+def _clearance(route: np.ndarray, fp: Footprint) -> float:
+    pts = [point_along(route, s) for s in np.linspace(0, 1, 400)]
+    return min(fp.distance(p) for p in pts)
+
+
+def test_straight_line_when_free():
+    fp = Footprint((5.0, 5.0), 0.0, (0.3, 0.3))
+    r = shortest_route((0, 0), (1, 0), [fp])
+    np.testing.assert_allclose(r, [[0, 0], [1, 0]])
+
+
+def test_route_goes_round_a_block_with_clearance():
+    fp = Footprint((1.0, 0.0), 0.3, (0.3, 0.4))
+    r = shortest_route((0, 0), (2, 0), [fp])
+    assert len(r) > 2
+    assert _clearance(r, fp) >= ROUTE_CLEARANCE - 1e-3
+    # no longer than going round the grown rectangle's far corners
+    assert np.sum(np.linalg.norm(np.diff(r, axis=0), axis=1)) < 3.5
+
+
+def test_end_next_to_an_object_shrinks_its_clearance():
+    fp = Footprint((1.0, 0.0), 0.0, (0.3, 0.3))
+    goal = (0.55, 0.0)                 # 0.15 m in front of it: closer than the clearance
+    r = shortest_route((0.55, 1.5), goal, [fp])
+    np.testing.assert_allclose(r[-1], goal)
+    assert _clearance(r, fp) >= 0.9 * 0.15 - 1e-3
+
+
+def test_enclosing_obstacle_is_ignored():
+    fp = Footprint((0.0, 0.0), 0.0, (1.0, 1.0))
+    np.testing.assert_allclose(shortest_route((0.2, 0.0), (3, 0), [fp]), [[0.2, 0], [3, 0]])
+
+
+def test_point_along_is_arc_length():
+    r = np.array([[0, 0], [1, 0], [1, 1]])
+    np.testing.assert_allclose(point_along(r, 0.25), [0.5, 0])
+    np.testing.assert_allclose(point_along(r, 0.75), [1, 0.5])
+    np.testing.assert_allclose(point_along(r, 1.0), [1, 1])
+
+
+@pytest.fixture(scope="module")
+def s2(g1):
+    return load_problem("s2_trolley", model=g1)
+
+
+def test_s2_walk_to_the_handle_goes_round_the_trolley(s2, g1):
+    data = ProblemData(s2, g1)
+    trolley = s2.object("trolley")
+    from lomanip_to.route import footprint_of
+
+    fp = footprint_of(trolley, trolley.position, trolley.rpy())
+    last = data.routes[-1]          # placing pose at the trolley's side -> behind its handle
+    assert len(last) > 2
+    assert _clearance(last, fp) >= 0.25
+    # the warm start follows it: on the walk round (8.2-14.8 s) the base keeps clear of the trolley
+    walk = (data.grid.t >= 8.2) & (data.grid.t <= 14.8)
+    assert min(fp.distance(x[:2]) for x in data.x_guess[walk]) > 0.2
+
+
+def test_s2_segments_split_after_the_rest_before_the_handle(s2):
+    segs = solver.segments(s2)
+    assert segs[:2] == [(0.0, 2.8), (2.8, 8.2)]
+    assert segs[2:] == [(8.2, 14.4), (14.4, 18.4)]
