@@ -35,3 +35,16 @@ def test_s2_problem_is_valid_and_ordered(s2_plan):
     assert times == sorted(times) and times[-1] <= s2_plan.problem.duration
     assert s2_plan.problem.placement_goals[0].object_id == "box"
     assert set(s2_plan.timings) == {"perception", "retargeting"}
+
+
+def test_s2_footsteps_go_round_the_trolley(s2_plan):
+    """Walking from the trolley's side (box placed) to its handle, no foothold lands on it."""
+    from lomanip_to.route import footprint_of
+
+    trolley = next(o for o in s2_plan.problem.objects if o.id == "trolley")
+    fp = footprint_of(trolley, trolley.position, trolley.rpy())
+    kf_push = s2_plan.problem.keyframe_time(s2_plan.problem.keyframes[2])
+    feet = [c.position for ph in s2_plan.problem.phases if ph.subtask_index == 2 and ph.end <= kf_push
+            for limb, c in ph.contacts.items() if limb.endswith("foot")]
+    assert feet
+    assert min(fp.distance(p) for p in feet) > 0.1

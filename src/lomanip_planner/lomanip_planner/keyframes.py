@@ -201,7 +201,7 @@ def build_problem(objects: list[SceneObject], keyframes: list[SubtaskKeyframe], 
                   initial_configuration: tuple, options: Options | None = None, timing: Timing = Timing(),
                   name: str = "") -> tuple[Problem, Schedule]:
     """The TO problem for a keyframe sequence (schedule generated between the keyframes)."""
-    schedule = plan_schedule(stance, keyframes, timing)
+    schedule = plan_schedule(stance, keyframes, timing, objects=list(objects))
     problem = Problem(objects=list(objects), keyframes=schedule.keyframes, phases=schedule.phases,
                       initial_configuration=tuple(initial_configuration),
                       placement_goals=schedule.placement_goals, options=options or Options(), name=name)

@@ -20,8 +20,11 @@ stance and each keyframe the schedule inserts:
    A prompt may chain several ("step on the box and grab the basket").
 
 The output uses lomanip_to's problem types, so a schedule goes straight into the TO. Timing comes
-from :class:`Timing` (parameters, not constants). Simplification (named): footsteps follow a
-straight line between stances (no obstacle-aware footstep search).
+from :class:`Timing` (parameters, not constants).  Footsteps follow the shortest route of the
+mid-feet point round the footprints of the objects the robot does not hold or step onto
+(:mod:`lomanip_to.route`, objects at their start or placed poses); simplification (named): a
+polyline route with the feet at the start stance's width either side of it, not a footstep search
+with kinematic reachability.
 """
 from __future__ import annotations
 
@@ -32,6 +35,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lomanip_to.problem import FLOOR, STANCE, WALKING, ContactPhase, ContactSpec, Keyframe, ObjectMotion, PlacementGoal
+
+from lomanip_to.route import Footprint, footprint_of, point_along, shortest_route
 
 from .retargeting import FEET, HANDS, LimbTarget
 
@@ -116,14 +121,37 @@ class Schedule:
         return self.phases[-1].end if self.phases else 0.0
 
 
+def _stance_yaw(left: np.ndarray, right: np.ndarray) -> float:
+    lat = np.asarray(left, float)[:2] - np.asarray(right, float)[:2]
+    return math.atan2(lat[1], lat[0]) - math.pi / 2
+
+
 class _Builder:
-    def __init__(self, stance: Stance, timing: Timing) -> None:
+    def __init__(self, stance: Stance, timing: Timing, objects: list | None = None) -> None:
         self.t = 0.0
         self.stance = stance
         self.timing = timing
         self.held: dict[str, ContactSpec] = {}      # hand -> contact it holds
         self.carried: set[str] = set()              # objects moving with the hands
         self.phases: list[ContactPhase] = []
+        self.objects = {o.id: o for o in (objects or [])}
+        self.footprints: dict[str, Footprint] = {o.id: footprint_of(o, o.position, o.rpy())
+                                                 for o in self.objects.values() if o.primitives}
+
+    def moved(self, oid: str, position, yaw: float) -> None:
+        """An object now stands at its placement goal (its footprint moves with it)."""
+        o = self.objects.get(oid)
+        if o is not None and o.primitives:
+            self.footprints[oid] = footprint_of(o, position, (0.0, 0.0, yaw))
+
+    def _route(self, targets: dict[str, tuple[np.ndarray, str]]) -> np.ndarray:
+        """Route of the mid-feet point to the targets' round the objects in the way."""
+        held = {c.object_id for c in self.held.values()} | self.carried
+        onto = {targets[f][1] for f in targets} | {self.stance.surface(f) for f in FEET}
+        obstacles = [fp for oid, fp in self.footprints.items() if oid not in held and oid not in onto]
+        a = 0.5 * (self.stance.left + self.stance.right)
+        b = 0.5 * (targets.get("left_foot", (self.stance.left,))[0] + targets.get("right_foot", (self.stance.right,))[0])
+        return shortest_route(a[:2], b[:2], obstacles)
 
     def _feet(self, only: str | None = None) -> dict[str, ContactSpec]:
         out = {}
@@ -150,8 +178,14 @@ class _Builder:
         moving = [f for f in FEET if f in targets and (moves[f] > 0.02 or targets[f][1] != self.stance.surface(f))]
         if not moving:
             return
-        n = max(1, math.ceil(max(moves[f] for f in moving) / tm.max_step_length))
+        route = self._route(targets)
+        length = float(np.sum(np.linalg.norm(np.diff(route, axis=0), axis=1)))
+        n = max(1, math.ceil(max([moves[f] for f in moving] + [length]) / tm.max_step_length))
         starts = {f: self.stance.foot(f).copy() for f in moving}
+        half_width = 0.5 * float(np.linalg.norm(self.stance.left[:2] - self.stance.right[:2]))
+        yaw0 = _stance_yaw(self.stance.left, self.stance.right)
+        end = {f: targets[f][0] if f in targets else self.stance.foot(f) for f in FEET}
+        yaw1 = yaw0 + math.remainder(_stance_yaw(end["left_foot"], end["right_foot"]) - yaw0, 2 * math.pi)
         # lead with the foot that has further to go; alternate feet, each moving 1/n of its way
         order = sorted(moving, key=lambda f: -moves[f])
         for i in range(1, n + 1):
@@ -159,6 +193,10 @@ class _Builder:
                 other = "right_foot" if f == "left_foot" else "left_foot"
                 self.add(tm.step, subtask, WALKING, stance_foot=other, objects=objects)
                 pos = starts[f] + (i / n) * (targets[f][0] - starts[f])
+                if len(route) > 2 and i < n:   # round an obstacle: beside the route, not on the line
+                    yaw = yaw0 + (i / n) * (yaw1 - yaw0)
+                    side = 1.0 if f == "left_foot" else -1.0
+                    pos[:2] = point_along(route, i / n) + side * half_width * np.array([-math.sin(yaw), math.cos(yaw)])
                 surface = targets[f][1] if i == n else self.stance.surface(f)
                 if i < n:   # intermediate footholds stay on the surface the foot started on
                     pos[2] = starts[f][2]
@@ -169,11 +207,14 @@ class _Builder:
                 self.add(tm.double_support, subtask, objects=objects)
 
 
-def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timing = Timing()) -> Schedule:
-    """Phases, keyframes (with their times) and placement goals for the TO."""
+def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timing = Timing(),
+                  objects: list | None = None) -> Schedule:
+    """Phases, keyframes (with their times) and placement goals for the TO.  ``objects`` (scene
+    objects) are walked round; without them the footsteps go straight."""
     from lomanip_sim import frames
 
-    b = _Builder(Stance(initial.left.copy(), initial.right.copy(), initial.left_surface, initial.right_surface), timing)
+    b = _Builder(Stance(initial.left.copy(), initial.right.copy(), initial.left_surface, initial.right_surface), timing,
+                 objects)
     out = Schedule()
     tm = timing
     for sk in subtasks:
@@ -199,6 +240,7 @@ def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timi
             if sk.placement is not None and sk.placement.object_id == target:
                 out.placement_goals.append(PlacementGoal(target, tuple(sk.placement.position), sk.placement.yaw,
                                                          time=b.t, weight=sk.placement.weight))
+                b.moved(target, sk.placement.position, sk.placement.yaw)
             b.add(tm.release, sk.index, objects={})
             b.held = {}
             b.add(tm.retract, sk.index, objects={})
@@ -226,6 +268,7 @@ def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timi
                 out.placement_goals.append(PlacementGoal(sk.placement.object_id, tuple(sk.placement.position),
                                                          sk.placement.yaw, time=b.t, weight=sk.placement.weight))
                 b.carried.discard(sk.placement.object_id)
+                b.moved(sk.placement.object_id, sk.placement.position, sk.placement.yaw)
                 b.add(tm.release, sk.index)
                 b.held = {h: c for h, c in b.held.items() if c.object_id != sk.placement.object_id}
                 b.add(tm.retract, sk.index)
