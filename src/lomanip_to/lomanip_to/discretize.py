@@ -85,11 +85,14 @@ SWING_TILT = 0.05
 class ProblemData:
     """All numeric arrays of one TO problem (bounds, parameters, warm start) + its structure."""
 
-    def __init__(self, prob: Problem, model: G1Model, moving: list | None = None, pairs: list | None = None):
+    def __init__(self, prob: Problem, model: G1Model, moving: list | None = None, pairs: list | None = None,
+                 stand: np.ndarray | None = None):
         """``moving``/``pairs`` force the moving-object list and collision pairs (subtask segments
-        of a bigger problem share its window structure, so the window is built once)."""
+        of a bigger problem share its window structure, so the window is built once); ``stand``
+        is the standing posture the nominal returns to (default: the initial configuration)."""
         self.prob = prob
         self.model = model
+        self.stand = np.asarray(prob.initial_configuration if stand is None else stand, float)
         opt = prob.options
         self.w = dict(DEFAULT_WEIGHTS)
         self.w.update(opt.weights or {})
@@ -188,7 +191,9 @@ class ProblemData:
         keyframes at their times) the base position and yaw move linearly; the posture (joints,
         base height above the support, roll/pitch) is the anchor's within ``blend_time`` of it and
         blends to the initial standing posture in between, so a long carry is initialised walking
-        upright rather than squatting.  After the last keyframe its state is held."""
+        upright rather than squatting.  After the last keyframe its state is held while a hand
+        still touches something, then blends back to standing (a segment that ends after placing
+        the box then ends standing, not squatting: the next one starts from there)."""
         prob, t = self.prob, self.grid.t
         anchors = [(0.0, self.x_init.copy())]
         for kf in sorted(prob.keyframes, key=prob.keyframe_time):
@@ -196,7 +201,7 @@ class ProblemData:
             if anchors[-1][0] > t[-1] + 1e-6:
                 break  # one anchor after the horizon is enough to head towards it
         h = [self._sole_height(x) for _, x in anchors]
-        stand = self.x_init.copy()
+        stand = self.stand.copy()
         h_stand = self._sole_height(stand)
         X = np.tile(anchors[-1][1], (len(t), 1))
         self.routes = [self._base_route(ta, xa, tb, xb) for (ta, xa), (tb, xb) in zip(anchors, anchors[1:])]
@@ -218,6 +223,19 @@ class ProblemData:
                 x[2] = wa * xa[2] + wb * xb[2] + ws * (stand[2] - h_stand + sup)
                 X[k] = x
                 break
+        ta, xa = anchors[-1]
+        if ta < t[-1]:
+            hands_free = [all(self.contact(k, hnd) is None for hnd in HANDS) for k in range(len(t))]
+            k_free = len(t)
+            while k_free > 0 and hands_free[k_free - 1] and t[k_free - 1] >= ta - 1e-9:
+                k_free -= 1
+            span = min(blend_time, t[-1] - t[k_free]) if k_free < len(t) else blend_time
+            for k in range(k_free, len(t)):
+                ws = min(1.0, (t[k] - t[k_free]) / max(span, 1e-9))
+                x = (1 - ws) * xa + ws * stand
+                x[[0, 1, 5]] = xa[[0, 1, 5]]
+                x[2] = (1 - ws) * xa[2] + ws * (stand[2] - h_stand + h[-1])
+                X[k] = x
         return X
 
     def _walking_time(self, t: float) -> float:

@@ -311,7 +311,7 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
         parts, converged, status = [], True, ""
         for i, (t0, t1) in enumerate(segs):
             sp = segment_problem(prob, t0, t1, x_init, poses)
-            sd = ProblemData(sp, model, moving=data.moving, pairs=data.pairs)
+            sd = ProblemData(sp, model, moving=data.moving, pairs=data.pairs, stand=data.x_init)
             subs = sorted({ph.subtask_index for ph in sp.phases})
             where = f"segment {i} (subtask {', '.join(map(str, subs))}, {t0:.1f}-{t1:.1f} s)"
             res = _run_stages(run, sd, win, wd, threads, where + " ")
