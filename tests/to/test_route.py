@@ -64,12 +64,12 @@ def test_s2_walk_to_the_handle_goes_round_the_trolley(s2, g1):
     last = data.routes[-1]          # placing pose at the trolley's side -> behind its handle
     assert len(last) > 2
     assert _clearance(last, fp) >= 0.25
-    # the warm start follows it: on the walk round (8.2-14.8 s) the base keeps clear of the trolley
-    walk = (data.grid.t >= 8.2) & (data.grid.t <= 14.8)
+    # the warm start follows it: on the walk round (8.8-15.4 s) the base keeps clear of the trolley
+    walk = (data.grid.t >= 8.8) & (data.grid.t <= 15.4)
     assert min(fp.distance(x[:2]) for x in data.x_guess[walk]) > 0.2
 
 
 def test_s2_segments_split_after_the_rest_before_the_handle(s2):
     segs = solver.segments(s2)
-    assert segs[:2] == [(0.0, 2.8), (2.8, 8.2)]
-    assert segs[2:] == [(8.2, 14.4), (14.4, 18.4)]
+    assert segs[:2] == [(0.0, 2.8), (2.8, 8.8)]
+    assert segs[2:] == [(8.8, 15.0), (15.0, 19.0)]
