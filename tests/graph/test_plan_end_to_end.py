@@ -21,7 +21,8 @@ from .helpers import ROOT, graph_env, ros_process, wait_for
 
 pytestmark = pytest.mark.graph
 
-SCENE = ["--scenario", "s2_trolley", "--set", "trolley_position=[0.85, 0.0]", "--set", "table_position=[0.75, 1.6]"]
+SCENE = ["--scenario", "s2_trolley", "--set", "trolley_position=[0.85, 0.0]", "--set", "table_position=[0.75, 1.6]",
+         "--set", "camera_position=[2.9, 1.7, 1.9]", "--set", "camera_target=[0.7, -0.5, 0.6]"]   # as make demo
 PUSH = ["push the trolley forward"]
 
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lomanip_to import solver
 from lomanip_to.discretize import ProblemData
 from lomanip_to.fixtures import load_problem
 from lomanip_to.route import ROUTE_CLEARANCE, Footprint, point_along, shortest_route
@@ -67,9 +66,3 @@ def test_s2_walk_to_the_handle_goes_round_the_trolley(s2, g1):
     # the warm start follows it: on the walk round (8.8-15.4 s) the base keeps clear of the trolley
     walk = (data.grid.t >= 8.8) & (data.grid.t <= 15.4)
     assert min(fp.distance(x[:2]) for x in data.x_guess[walk]) > 0.2
-
-
-def test_s2_segments_split_after_the_rest_before_the_handle(s2):
-    segs = solver.segments(s2)
-    assert segs[:2] == [(0.0, 2.8), (2.8, 8.8)]
-    assert segs[2:] == [(8.8, 15.0), (15.0, 19.0)]

@@ -162,16 +162,9 @@ class ProblemData:
         for kf in prob.keyframes:
             kf_by_sub.setdefault(kf.subtask_index, kf)
         self.kf_knots = {}
-        #: keyframes after the horizon (a segment that ends before its subtask's keyframe, e.g. the
-        #: walk to the trolley's handle): they steer the nominal and the last footholds, no cost
-        self.kf_after = []
         for kf in prob.keyframes:
             t = prob.keyframe_time(kf)
-            if t > self.grid.t[-1] + 1e-6:
-                self.kf_after.append((t, kf))
-                continue
             self.kf_knots[int(np.argmin(np.abs(self.grid.t - t)))] = kf
-        self.kf_after.sort(key=lambda a: a[0])
         X = np.tile(self.x_init, (K, 1))
         if opt.use_keyframe_warm_start and prob.keyframes:
             X = self._keyframe_nominal()
@@ -198,8 +191,6 @@ class ProblemData:
         anchors = [(0.0, self.x_init.copy())]
         for kf in sorted(prob.keyframes, key=prob.keyframe_time):
             anchors.append((prob.keyframe_time(kf), kf.x()))
-            if anchors[-1][0] > t[-1] + 1e-6:
-                break  # one anchor after the horizon is enough to head towards it
         h = [self._sole_height(x) for _, x in anchors]
         stand = self.stand.copy()
         h_stand = self._sole_height(stand)

@@ -23,7 +23,7 @@ from .assembly import AssembledNLP, WindowDerivatives
 from .checks import penetration_per_knot, run_checks
 from .discretize import ProblemData
 from .model import FEET, HANDS, LIMBS, SOLE_CORNERS, G1Model, rpy_to_rot
-from .problem import STANCE, TO_NOT_CONVERGED, Problem, validate_problem
+from .problem import TO_NOT_CONVERGED, Problem, validate_problem
 from .result import Progress, SolverStats, TOResult, Violation
 from .transcription import Window
 
@@ -44,10 +44,6 @@ GUIDE_STAGE_TOLERANCES = {"tol": 1e-2, "acceptable_tol": 1e-1, "acceptable_const
                           "acceptable_iter": 3}
 #: horizons up to this many knots are solved in one piece (segmenting only pays for long tasks)
 SEGMENT_MIN_KNOTS = 60
-#: a subtask is also split after a feet-only stance of at least this long (s), if both parts last
-#: at least REST_SPLIT_MIN_DURATION (s): S2's "walk round to the handle, then push" (7.4 s) hit the
-#: guide stage's iteration cap in one piece
-REST_SPLIT_MIN_STANCE, REST_SPLIT_MIN_DURATION = 0.6, 2.0
 
 DYNAMICS_ROWS = ("kinematic integration", "CoM integration", "linear momentum dynamics",
                  "angular momentum dynamics", "CoM consistency", "centroidal momentum consistency (CMM)",
@@ -312,8 +308,7 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
         for i, (t0, t1) in enumerate(segs):
             sp = segment_problem(prob, t0, t1, x_init, poses)
             sd = ProblemData(sp, model, moving=data.moving, pairs=data.pairs, stand=data.x_init)
-            subs = sorted({ph.subtask_index for ph in sp.phases})
-            where = f"segment {i} (subtask {', '.join(map(str, subs))}, {t0:.1f}-{t1:.1f} s)"
+            where = f"subtask {i} ({t0:.1f}-{t1:.1f} s)"
             res = _run_stages(run, sd, win, wd, threads, where + " ")
             parts.append((sd, res))
             if not _converged(res[3]):
@@ -368,31 +363,15 @@ def get_nlp(wd, structure, K: int, threads: int = 2) -> AssembledNLP:
     return _NLPS[nkey]
 
 
-def _rest_phase(ph) -> bool:
-    """A stance on the feet alone with no object moving: the robot can stand still through it."""
-    return (ph.phase_type == STANCE and not ph.objects and set(ph.contacts) <= set(FEET)
-            and ph.end - ph.start >= REST_SPLIT_MIN_STANCE - 1e-9)
-
-
 def segments(prob: Problem) -> list:
-    """[(t0, t1)] of consecutive subtasks (phase boundaries where the subtask index changes); a
-    subtask is split further after a rest phase (:func:`_rest_phase`, e.g. standing at the trolley
-    before grasping its handle) when both parts last at least ``REST_SPLIT_MIN_DURATION``."""
+    """[(t0, t1)] of consecutive subtasks (phase boundaries where the subtask index changes)."""
     out, t0 = [], 0.0
     for i, ph in enumerate(prob.phases):
         last = i == len(prob.phases) - 1
         if last or prob.phases[i + 1].subtask_index != ph.subtask_index:
             out.append((t0, ph.end))
             t0 = ph.end
-    split = []
-    for a, b in out:
-        cuts = [a]
-        for ph in prob.phases:
-            if (a < ph.start and ph.end < b and _rest_phase(ph) and ph.end - cuts[-1] >= REST_SPLIT_MIN_DURATION - 1e-9
-                    and b - ph.end >= REST_SPLIT_MIN_DURATION - 1e-9):
-                cuts.append(ph.end)
-        split.extend(zip(cuts, cuts[1:] + [b]))
-    return split
+    return out
 
 
 def segment_problem(prob: Problem, t0: float, t1: float, x_init, poses: dict) -> Problem:

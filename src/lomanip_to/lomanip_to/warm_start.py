@@ -128,8 +128,6 @@ def footholds(data, x_nom: np.ndarray) -> dict:
                 kk = [k for k in kf_x if k0 <= k <= k1]
                 if kk:
                     pose = _foot_pose(model, kf_x[kk[0]], f)
-                elif k1 == K - 1 and data.kf_after:  # standing until the next keyframe, beyond the horizon
-                    pose = _foot_pose(model, data.kf_after[0][1].x(), f)
                 else:
                     xb = x_nom[(k0 + k1) // 2]
                     yaw = float(xb[5])
