@@ -35,8 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lomanip_to.problem import FLOOR, STANCE, WALKING, ContactPhase, ContactSpec, Keyframe, ObjectMotion, PlacementGoal
-
-from lomanip_to.route import Footprint, footprint_of, point_along, shortest_route
+from lomanip_to.route import Footprint, footprint_of, point_along, route_length, shortest_route
 
 from .retargeting import FEET, HANDS, LimbTarget
 
@@ -179,8 +178,7 @@ class _Builder:
         if not moving:
             return
         route = self._route(targets)
-        length = float(np.sum(np.linalg.norm(np.diff(route, axis=0), axis=1)))
-        n = max(1, math.ceil(max([moves[f] for f in moving] + [length]) / tm.max_step_length))
+        n = max(1, math.ceil(max([moves[f] for f in moving] + [route_length(route)]) / tm.max_step_length))
         starts = {f: self.stance.foot(f).copy() for f in moving}
         half_width = 0.5 * float(np.linalg.norm(self.stance.left[:2] - self.stance.right[:2]))
         yaw0 = _stance_yaw(self.stance.left, self.stance.right)

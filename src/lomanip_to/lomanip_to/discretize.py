@@ -14,8 +14,8 @@ import numpy as np
 
 from .model import FEET, HANDS, LIMBS, SOLE_CENTER, G1Model, rot_to_rpy, rpy_to_rot
 from .problem import FLOOR, STANCE, WALKING, Problem, SceneObject
-from .transcription import Structure, Window
 from .route import footprint_of, point_along, shortest_route
+from .transcription import Structure, Window
 
 INF = np.inf
 
@@ -195,7 +195,7 @@ class ProblemData:
         stand = self.stand.copy()
         h_stand = self._sole_height(stand)
         X = np.tile(anchors[-1][1], (len(t), 1))
-        self.routes = [self._base_route(ta, xa, tb, xb) for (ta, xa), (tb, xb) in zip(anchors, anchors[1:])]
+        self.routes = [self._base_route(ta, xa, xb) for (ta, xa), (_, xb) in zip(anchors, anchors[1:])]
         for k, tk in enumerate(t):
             for i in range(len(anchors) - 1):
                 (ta, xa), (tb, xb) = anchors[i], anchors[i + 1]
@@ -220,7 +220,7 @@ class ProblemData:
             k_free = len(t)
             while k_free > 0 and hands_free[k_free - 1] and t[k_free - 1] >= ta - 1e-9:
                 k_free -= 1
-            span = min(blend_time, t[-1] - t[k_free]) if k_free < len(t) else blend_time
+            span = min(blend_time, t[-1] - t[min(k_free, len(t) - 1)])
             for k in range(k_free, len(t)):
                 ws = min(1.0, (t[k] - t[k_free]) / max(span, 1e-9))
                 x = (1 - ws) * xa + ws * stand
@@ -242,7 +242,7 @@ class ProblemData:
             return (t - ta) / max(tb - ta, 1e-9)
         return min(1.0, max(0.0, (self._walking_time(t) - self._walking_time(ta)) / total))
 
-    def _base_route(self, ta: float, xa: np.ndarray, tb: float, xb: np.ndarray) -> np.ndarray:
+    def _base_route(self, ta: float, xa: np.ndarray, xb: np.ndarray) -> np.ndarray:
         """Floor route of the base from anchor a to anchor b round the objects the robot neither
         touches nor moves at ta (:mod:`lomanip_to.route`), at their nominal poses at ta.  An object
         the robot walks up to (the trolley's handle) is an obstacle on the way; the route ends

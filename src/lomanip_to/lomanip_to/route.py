@@ -142,6 +142,10 @@ def shortest_route(a, b, obstacles: list[Footprint], clearance: float = ROUTE_CL
     return np.array(path[::-1])
 
 
+def route_length(route: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(route, axis=0), axis=1).sum())
+
+
 def point_along(route: np.ndarray, s: float) -> np.ndarray:
     """The point at fraction ``s`` (0..1) of the polyline's length."""
     seg = np.linalg.norm(np.diff(route, axis=0), axis=1)
