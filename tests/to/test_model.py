@@ -55,3 +55,30 @@ def test_kinematics_and_cmm_match_pinocchio(g1):
         # numpy path equals casadi path
         num = g1.numeric(x, xd)
         assert np.allclose(num["h"], h_ref, atol=1e-9)
+
+
+def test_quasi_static_limb_torques_match_rnea_at_rest(g1):
+    """The TO's limb torque rows equal Pinocchio's RNEA at zero velocity and acceleration."""
+    m, d = g1.pin_model, g1.pin_model.createData()
+    rng = np.random.default_rng(1)
+    names = {limb: [m.names[j] for j in js] for limb, js in g1.limb_torque_joints.items()}
+    assert names["left_foot"][0] == "left_hip_pitch_joint" and names["left_foot"][-1] == "left_ankle_roll_joint"
+    assert names["right_hand"][0] == "right_shoulder_pitch_joint"
+    assert names["right_hand"][-1] == "right_wrist_yaw_joint" and len(names["right_hand"]) == 7
+    for _ in range(3):
+        x, _ = _random_state(g1, rng)
+        q = g1.x_to_q(x)
+        pin.forwardKinematics(m, d, q)
+        tree = g1.symbolic_tree(x)
+        frames = g1.limb_frames(tree)
+        wrenches, fext = {}, [pin.Force.Zero() for _ in range(m.njoints)]
+        for limb, (pt, _) in frames.items():
+            f, moment = rng.normal(scale=40, size=3), rng.normal(scale=3, size=3)
+            wrenches[limb] = ([(pt, f)], moment)
+            o = d.oMi[g1.limb_joint[limb]]
+            fext[g1.limb_joint[limb]] = pin.Force(o.rotation.T @ f,
+                                                 o.rotation.T @ (moment + np.cross(pt - o.translation, f)))
+        tau = pin.rnea(m, d, q, np.zeros(35), np.zeros(35), fext)
+        ours = g1.quasi_static_limb_torques(tree, wrenches)
+        for limb, js in g1.limb_torque_joints.items():
+            assert np.allclose(ours[limb], [tau[6 + j - 2] for j in js], atol=1e-9)

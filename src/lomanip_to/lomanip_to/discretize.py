@@ -80,6 +80,9 @@ def self_pairs(model: G1Model) -> tuple:
 
 #: sine of the largest tilt of a swing sole (3 deg: heel/toe at most ~5 mm lower than the sole centre)
 SWING_TILT = 0.05
+#: limb joint torques are held to this fraction of the G1 limits in the TO (quasi-static rows), so
+#: that the inertia the rows leave out still fits under the limit in the a-posteriori RNEA check
+TORQUE_MARGIN = 0.8
 
 
 class ProblemData:
@@ -439,6 +442,8 @@ class ProblemData:
             for (a, b) in win.st.self_pairs:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
             rows("floor clearance", k, 0, INF)  # smooth, so on in every homotopy stage
+            # |tau| <= TORQUE_MARGIN tau_max: the rows leave out the distal links' inertia
+            rows("limb joint torques (quasi-static)", k, -TORQUE_MARGIN, TORQUE_MARGIN)
 
         # ---------------- parameters
         kf_sub = {kf.subtask_index: kf for kf in prob.keyframes}

@@ -347,6 +347,58 @@ class G1Model:
     def sphere_centers(self, tree):
         return [self.point_world(tree, s.joint, s.center) for s in self.spheres]
 
+    # ---------------------------------------------------------------- limb joint torques
+    @cached_property
+    def limb_torque_joints(self) -> dict[str, list[int]]:
+        """Per limb, the Pinocchio ids of the joints between the trunk and the contact (hip or
+        shoulder down to the ankle or wrist): the joints whose torque the limb's contact loads."""
+        m = self.pin_model
+        out = {}
+        for limb in LIMBS:
+            chain = []
+            j = self.limb_joint[limb]
+            while m.names[j] not in ("root", "waist_pitch_joint") and j > 1:
+                chain.append(j)
+                j = m.parents[j]
+            out[limb] = chain[::-1]
+        return out
+
+    def quasi_static_limb_torques(self, tree, limb_wrenches: dict):
+        """Torques of the limb joints that hold the limbs still against gravity and the contacts.
+
+        ``limb_wrenches[limb] = [(point, force), ...], moment`` in world frame (N, N m), acting ON
+        the robot.  For a joint, only the links beyond it and their contacts count, so this is the
+        static part of the joint torque (Pinocchio's RNEA at zero velocity and acceleration gives
+        the same number, see the test).  Named simplification: the inertial terms of the distal
+        links (a hand, a shin and foot: light) are left out; the a-posteriori RNEA check has them.
+        Returns {limb: [tau_j for j in limb_torque_joints[limb]]}.
+        """
+        m = self.pin_model
+        subtree = {}
+        for j in range(m.njoints - 1, 0, -1):  # children have larger ids
+            Y = m.inertias[j]
+            c = tree["p"][j] + tree["R"][j] @ np.array(Y.lever)
+            mc, ms = float(Y.mass) * c, float(Y.mass)
+            for ch in range(j + 1, m.njoints):
+                if m.parents[ch] == j:
+                    mc = mc + subtree[ch][0]
+                    ms = ms + subtree[ch][1]
+            subtree[j] = (mc, ms)
+        out = {}
+        for limb, joints in self.limb_torque_joints.items():
+            forces, moment = limb_wrenches.get(limb, ([], 0))
+            taus = []
+            for j in joints:
+                mc, ms = subtree[j]
+                pj = tree["p"][j]
+                M = _cross(mc - ms * pj, GRAVITY) + moment
+                for pt, f in forces:
+                    M = M + _cross(pt - pj, f)
+                axis = tree["R"][j][:, self._axes[j - 2]]
+                taus.append(-(axis.T @ M) if _lib(pj) is np else -ca.dot(axis, M))
+            out[limb] = taus
+        return out
+
     @cached_property
     def casadi_functions(self) -> dict[str, ca.Function]:
         """SX Functions: ``com(x)``, ``h(x, xd)``, ``limbs(x)`` -> 4 points, ``spheres(x)``."""
