@@ -83,6 +83,27 @@ SWING_TILT = 0.05
 #: limb joint torques are held to this fraction of the G1 limits in the TO (quasi-static rows), so
 #: that the inertia the rows leave out still fits under the limit in the a-posteriori RNEA check
 TORQUE_MARGIN = 0.8
+#: time (s) the nominal takes to stand up after the hands let go at the end of a task or segment
+STAND_UP_TIME = 1.0
+
+
+def _smoothstep(u: float) -> float:
+    """0 below 0, 1 above 1, 3u^2 - 2u^3 between: a blend that starts and ends at rest."""
+    u = min(1.0, max(0.0, u))
+    return u * u * (3.0 - 2.0 * u)
+
+
+def _relative_to_base(x: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """Object pose (p, rpy) in the frame of the base's floor-projected yaw: (p_rel, roll, pitch, dyaw)."""
+    c, s = math.cos(x[5]), math.sin(x[5])
+    d = pose[:3] - x[:3]
+    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2], pose[3], pose[4], pose[5] - x[5]])
+
+
+def _from_base(x: np.ndarray, rel: np.ndarray) -> np.ndarray:
+    c, s = math.cos(x[5]), math.sin(x[5])
+    return np.array([x[0] + c * rel[0] - s * rel[1], x[1] + s * rel[0] + c * rel[1], x[2] + rel[2],
+                     rel[3], rel[4], rel[5] + x[5]])
 
 
 class ProblemData:
@@ -149,6 +170,59 @@ class ProblemData:
                     k += 1
             self.obj_nom[oid] = traj
 
+    def _moving_intervals(self, oid: str) -> list:
+        """(first, last) knots of each stretch in which ``oid`` moves (it is in the phases' objects)."""
+        K, out, k = self.grid.K, [], 0
+        while k < K:
+            if oid in self.prob.phases[self.grid.phase[k]].objects:
+                k1 = k
+                while k1 < K and oid in self.prob.phases[self.grid.phase[k1]].objects:
+                    k1 += 1
+                out.append((k, min(k1, K - 1)))
+                k = k1 + 1
+            else:
+                k += 1
+        return out
+
+    def _objects_follow_base(self, X: np.ndarray) -> None:
+        """A held object moves with the robot's nominal base, not on its own clock.
+
+        Why: the linear object nominal of :meth:`_object_timeline` and the base nominal (paced by
+        the walking phases along a route) disagreed by up to 0.5 m during S1's carry; the warm
+        start's IK, pulled by the hands to the box and by the feet to the footholds, then swung the
+        base yaw by 1.5 rad and its knots jumped (momentum rows violated by 3.4 at the first
+        iterate).  Here, over each stretch in which a hand holds the object, its pose relative to
+        the base (position and yaw) blends from the one at the stretch's start to the one at its
+        end, in time; a supported or rolling object keeps its height and tilt.  Objects attached
+        to it follow it.  Rest poses (before and after) are unchanged."""
+        t = self.grid.t
+        for oid in self.moving:
+            traj = self.obj_nom[oid]
+            for k0, k1 in self._moving_intervals(oid):
+                held = any(c.object_id == oid for k in range(k0, k1 + 1)
+                           for h in HANDS if (c := self.contact(k, h)) is not None)
+                if not held or k1 <= k0:
+                    continue
+                rel0 = _relative_to_base(X[k0], traj[k0])
+                rel1 = _relative_to_base(X[k1], traj[k1])
+                rel1[5] = rel0[5] + math.remainder(rel1[5] - rel0[5], 2 * math.pi)
+                for k in range(k0 + 1, k1):
+                    s = (t[k] - t[k0]) / (t[k1] - t[k0])
+                    pose = _from_base(X[k], (1 - s) * rel0 + s * rel1)
+                    if self.obj_mode(k, oid) in ("supported", "rolling"):
+                        pose[[2, 3, 4]] = traj[k, [2, 3, 4]]
+                    traj[k] = pose
+            for other in self.moving:  # objects riding on it
+                for k in range(self.grid.K):
+                    mo = self.prob.phases[self.grid.phase[k]].objects.get(other)
+                    if mo is not None and mo.mode == "attached" and mo.attached_to == oid:
+                        off = self._attach_offset(k, other, oid)
+                        pc = traj[k]
+                        pose = self.obj_nom[other][k].copy()
+                        pose[:3] = pc[:3] + rpy_to_rot(pc[3:]) @ off[:3]
+                        pose[5] = pc[5] + off[3]
+                        self.obj_nom[other][k] = pose
+
     def obj_mode(self, k: int, oid: str) -> str:
         ph = self.prob.phases[self.grid.phase[k]]
         mo = ph.objects.get(oid)
@@ -172,6 +246,7 @@ class ProblemData:
         if opt.use_keyframe_warm_start and prob.keyframes:
             X = self._keyframe_nominal()
             X[0] = self.x_init
+            self._objects_follow_base(X)
             if opt.stepping_warm_start:
                 from .warm_start import stepping_guess
 
@@ -181,19 +256,23 @@ class ProblemData:
     def _sole_height(self, x: np.ndarray) -> float:
         return float(min(self.model.numeric(x)["limbs"][f][0][2] for f in FEET))
 
-    def _keyframe_nominal(self, blend_time: float = 0.8) -> np.ndarray:
+    def _keyframe_nominal(self, blend_time: float = 1.0) -> np.ndarray:
         """Nominal state of every knot from the keyframes (paper IV-B: keyframes initialise the
         shooting nodes of their subtask).  Named variant: between consecutive anchors (initial state,
-        keyframes at their times) the base position and yaw move linearly; the posture (joints,
-        base height above the support, roll/pitch) is the anchor's within ``blend_time`` of it and
-        blends to the initial standing posture in between, so a long carry is initialised walking
-        upright rather than squatting.  After the last keyframe its state is held while a hand
-        still touches something, then blends back to standing (a segment that ends after placing
-        the box then ends standing, not squatting: the next one starts from there)."""
+        keyframes at their times) the base moves along its route, paced by the walking phases; the
+        posture (joints, base height above the support, roll/pitch) is the anchor's while the hands
+        hold what they hold at the keyframe with the feet planted (:meth:`_hold_window`), and
+        blends to the standing posture over ``blend_time`` outside it (smoothstep: no velocity
+        jumps), so a long carry is initialised walking upright rather than squatting.  After the
+        last keyframe its state is held while a hand still touches something, then the robot
+        stands up over ``STAND_UP_TIME`` (a segment that ends after placing the box ends standing
+        or on its way up: the next one starts from there)."""
         prob, t = self.prob, self.grid.t
         anchors = [(0.0, self.x_init.copy())]
+        holds = [(0.0, 0.0)]
         for kf in sorted(prob.keyframes, key=prob.keyframe_time):
             anchors.append((prob.keyframe_time(kf), kf.x()))
+            holds.append(self._hold_window(prob.keyframe_time(kf)))
         h = [self._sole_height(x) for _, x in anchors]
         stand = self.stand.copy()
         h_stand = self._sole_height(stand)
@@ -205,8 +284,8 @@ class ProblemData:
                 if not ta - 1e-9 <= tk <= tb + 1e-9:
                     continue
                 s = self._walk_fraction(ta, tk, tb)
-                wa = max(0.0, 1.0 - (tk - ta) / blend_time)
-                wb = max(0.0, 1.0 - (tb - tk) / blend_time)
+                wa = 1.0 - _smoothstep((tk - holds[i][1]) / blend_time)
+                wb = 1.0 - _smoothstep((holds[i + 1][0] - tk) / blend_time)
                 if wa + wb > 1.0:
                     wa, wb = wa / (wa + wb), wb / (wa + wb)
                 ws = 1.0 - wa - wb
@@ -223,14 +302,38 @@ class ProblemData:
             k_free = len(t)
             while k_free > 0 and hands_free[k_free - 1] and t[k_free - 1] >= ta - 1e-9:
                 k_free -= 1
-            span = min(blend_time, t[-1] - t[min(k_free, len(t) - 1)])
             for k in range(k_free, len(t)):
-                ws = min(1.0, (t[k] - t[k_free]) / max(span, 1e-9))
+                ws = _smoothstep((t[k] - t[k_free]) / STAND_UP_TIME)
                 x = (1 - ws) * xa + ws * stand
                 x[[0, 1, 5]] = xa[[0, 1, 5]]
                 x[2] = (1 - ws) * xa[2] + ws * (stand[2] - h_stand + h[-1])
                 X[k] = x
         return X
+
+    def _hold_window(self, t_kf: float) -> tuple:
+        """(start, end) times around a keyframe in which the robot is in the keyframe's posture:
+        the knots next to it with the same hand contacts (at least one) and both feet planted.
+
+        Why: the hands reach the keyframe's contact points only in its posture; when the posture
+        only blended in from the standing one at the keyframe (S1's pick: hands on the box 0.4 s
+        before it), the warm start's IK dropped the knees by 1.1 rad in one knot to get there."""
+        t = self.grid.t
+        k_kf = int(np.argmin(np.abs(t - t_kf)))
+
+        def grip(k):
+            return tuple((h, c.object_id) for h in HANDS if (c := self.contact(k, h)) is not None)
+
+        def same(k):
+            return (grip(k) == grip(k_kf) and all(self.contact(k, f) is not None for f in FEET))
+
+        if not grip(k_kf) or not same(k_kf):
+            return t_kf, t_kf
+        k0 = k1 = k_kf
+        while k0 > 0 and same(k0 - 1):
+            k0 -= 1
+        while k1 < len(t) - 1 and same(k1 + 1):
+            k1 += 1
+        return min(t[k0], t_kf), max(t[k1], t_kf)
 
     def _walking_time(self, t: float) -> float:
         """Time spent in walking phases up to ``t``."""
