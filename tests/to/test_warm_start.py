@@ -102,3 +102,18 @@ def test_s2_warm_start_is_clear_of_furniture(g1):
     trolley, the warm start's body stays out of both (the hands may touch)."""
     data = ProblemData(load_problem("s2_trolley", model=g1), g1)
     assert _worst_body_penetration(g1, data, data.x_guess) < 0.01
+
+
+def test_carried_box_moves_with_the_base_and_the_warm_start_has_no_jumps(g1):
+    """S1's carry: the box's nominal follows the base, so the IK does not twist the robot to reach
+    it (before: the box moved on its own clock, 0.5 m off the base; yaw jumped 0.9 rad per knot)."""
+    data = ProblemData(load_problem("s1_basket", model=g1), g1)
+    X, box = data.x_guess, data.obj_nom["box"]
+    carried = [k for k in range(data.grid.K) if data.obj_mode(k, "box") == "free"]
+    assert len(carried) > 20
+    reach = max(np.linalg.norm(box[k, :2] - X[k, :2]) for k in carried)
+    assert reach < 0.6, f"box {reach:.2f} m from the base"
+    ks = np.array(carried[:-1])
+    assert np.abs(X[ks + 1, 5] - X[ks, 5]).max() < 0.35
+    speed = np.abs(X[ks + 1, :3] - X[ks, :3]).max(axis=1) / (data.grid.t[ks + 1] - data.grid.t[ks])
+    assert speed.max() < 1.0, f"base speed {speed.max():.2f} m/s"
