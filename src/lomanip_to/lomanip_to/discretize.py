@@ -145,40 +145,30 @@ class ProblemData:
             o = prob.object(oid)
             pose = np.concatenate([np.asarray(o.position, float), o.rpy()])
             traj = np.tile(pose, (K, 1))
-            # find moving intervals: contiguous phases where the object appears
             cur = pose.copy()
-            k = 0
-            while k < K:
-                ph = prob.phases[self.grid.phase[k]]
-                if oid in ph.objects:
-                    k1 = k
-                    while k1 < K and oid in prob.phases[self.grid.phase[k1]].objects:
-                        k1 += 1
-                    end = cur.copy()
-                    g = goals.get(oid)
-                    t_end = self.grid.t[min(k1, K - 1)]
-                    if g is not None and (g.time is None or g.time <= t_end + 1e-9):
-                        end = np.concatenate([np.asarray(g.position, float), [0.0, 0.0, g.yaw]])
-                    for kk in range(k, min(k1 + 1, K)):
-                        s = (kk - k) / max(1, (k1 - k))
-                        traj[kk] = (1 - s) * cur + s * end
-                    cur = end
-                    k = k1 + 1
-                    traj[k:] = cur
-                else:
-                    traj[k] = cur
-                    k += 1
+            for k, k1 in self._moving_intervals(oid):
+                end = cur.copy()
+                g = goals.get(oid)
+                t_end = self.grid.t[min(k1, K - 1)]
+                if g is not None and (g.time is None or g.time <= t_end + 1e-9):
+                    end = np.concatenate([np.asarray(g.position, float), [0.0, 0.0, g.yaw]])
+                for kk in range(k, min(k1 + 1, K)):
+                    s = (kk - k) / max(1, (k1 - k))
+                    traj[kk] = (1 - s) * cur + s * end
+                cur = end
+                traj[k1 + 1:] = cur
             self.obj_nom[oid] = traj
 
     def _moving_intervals(self, oid: str) -> list:
-        """(first, last) knots of each stretch in which ``oid`` moves (it is in the phases' objects)."""
+        """(first knot, first knot after) of each stretch in which ``oid`` moves (it is in the
+        phases' objects); the knot after is where it comes to rest (K if it never does)."""
         K, out, k = self.grid.K, [], 0
         while k < K:
             if oid in self.prob.phases[self.grid.phase[k]].objects:
                 k1 = k
                 while k1 < K and oid in self.prob.phases[self.grid.phase[k1]].objects:
                     k1 += 1
-                out.append((k, min(k1, K - 1)))
+                out.append((k, k1))
                 k = k1 + 1
             else:
                 k += 1
@@ -198,7 +188,8 @@ class ProblemData:
         t = self.grid.t
         for oid in self.moving:
             traj = self.obj_nom[oid]
-            for k0, k1 in self._moving_intervals(oid):
+            for k0, k_rest in self._moving_intervals(oid):
+                k1 = min(k_rest, self.grid.K - 1)
                 held = any(c.object_id == oid for k in range(k0, k1 + 1)
                            for h in HANDS if (c := self.contact(k, h)) is not None)
                 if not held or k1 <= k0:

@@ -357,7 +357,7 @@ class G1Model:
         for limb in LIMBS:
             chain = []
             j = self.limb_joint[limb]
-            while m.names[j] not in ("root", "waist_pitch_joint") and j > 1:
+            while j > 1 and m.names[j] != "waist_pitch_joint":  # up to the pelvis or the torso
                 chain.append(j)
                 j = m.parents[j]
             out[limb] = chain[::-1]

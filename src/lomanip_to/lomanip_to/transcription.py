@@ -223,8 +223,7 @@ class Window:
         # scaled by the joint's limit: the wrists (5 N m) failed the a-posteriori RNEA check
         # when the hands pushed or carried (see model.quasi_static_limb_torques)
         mg = mass * G
-        wrenches = {f: ([(feet_pts[f][i], mg * ca.reshape(wa[f"u_{f}"], 3, 4)[:, i]) for i in range(4)], 0)
-                    for f in FEET}
+        wrenches = {f: ([(pt, mg * u) for pt, u in forces[4 * i:4 * i + 4]], 0) for i, f in enumerate(FEET)}
         wrenches.update({h: ([(limbs[h][0], mg * wa[f"u_{h}"])], mg * wa[f"tau_{h}"]) for h in HANDS})
         taus = m.quasi_static_limb_torques(tree, wrenches)
         add("limb joint torques (quasi-static)",
