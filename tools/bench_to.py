@@ -3,7 +3,8 @@
 
 For every grid cell (box mass x box yaw, from the ``grid`` of lomanip_sim's scenarios.yaml) and
 every variant it builds the fixture problem (src/lomanip_to/config/s1_basket.yaml,
-s2_trolley.yaml), solves it and records: converged, success (converged AND the physical checks),
+s2_trolley.yaml), solves it and records: converged ("optimal" when ipopt's test is met, "stalled" when the stall
+acceptance stopped a feasible final stage, see solver.STALLED_STATUS), success (converged AND the physical checks),
 iterations, build / solve wall time, peak resident memory of this process, max constraint
 violation, max penetration.  Variants (``Options`` switches):
 
@@ -113,12 +114,21 @@ def run_case(model, scenario: str, over: dict, variant: str, out: Path, time_lim
     plot_penetration(out / f"{name}_{variant}_penetration.png",
                      f"{name} {variant}: {'success' if res.success else 'FAILED'}, max {1e3 * s.max_penetration:.1f} mm",
                      [(variant, res.t_knots, res.penetration_knots)])
-    return {"case": name, "variant": variant, "overrides": over, "converged": s.converged, "success": res.success,
+    return {"case": name, "variant": variant, "overrides": over, "converged": s.converged,
+            "convergence": convergence_kind(s.converged, s.status), "success": res.success,
             "iterations": s.iterations, "build_s": load_s + s.build_time, "solve_s": s.solve_time,
             "peak_mb": s.peak_memory_mb, "max_violation": s.max_constraint_violation.value,
             "max_violation_where": s.max_constraint_violation.text(), "penetration_mm": 1e3 * s.max_penetration,
             "status": s.status_message(), "stages": s.stages, "n_knots": s.n_knots,
             "checks": {k: bool(c["ok"]) for k, c in s.checks.items()}}
+
+
+def convergence_kind(converged: bool, status: str) -> str:
+    """'optimal' (ipopt's tolerance or acceptable test), 'stalled' (the stall acceptance:
+    feasible, objective flat; solver.STALLED_STATUS) or 'no'."""
+    if not converged:
+        return "no"
+    return "stalled" if solver.STALLED_STATUS in status else "optimal"
 
 
 def _load_penetration(path: Path) -> tuple:
@@ -127,7 +137,7 @@ def _load_penetration(path: Path) -> tuple:
 
 
 def fmt_row(r: dict) -> str:
-    return (f"{r['case']:<24} {r['variant']:<8} {str(r['converged']):<9} {str(r['success']):<7} "
+    return (f"{r['case']:<24} {r['variant']:<8} {r.get('convergence', str(r['converged'])):<9} {str(r['success']):<7} "
             f"{r['iterations']:>5d} {r['build_s']:>7.1f} {r['solve_s']:>7.1f} {r['peak_mb']:>7.0f} "
             f"{r['max_violation']:>9.1e} {r['penetration_mm']:>6.1f}")
 

@@ -214,6 +214,14 @@ class Options:
     tol: float = 1e-4
     constr_tol: float = 1e-4
     time_limit: float = 600.0
+    #: stall acceptance of a final stage, for when ipopt creeps along a feasible valley without
+    #: meeting its dual test: stop and accept the point ("Feasible_Objective_Stalled") when the
+    #: current iterate is within constr_tol, each of the last ``stall_iterations`` iterates within
+    #: ``stall_constr_tol``, and the objective moved by at most ``stall_rtol`` (relative) over them.
+    #: Not a KKT certificate (docs/to.md); 0 iterations switches it off.
+    stall_iterations: int = 30
+    stall_rtol: float = 1e-2
+    stall_constr_tol: float = 1e-3
     print_level: int = 0
     #: solve subtask by subtask (at rest at subtask boundaries), stitch, then polish the whole horizon
     subtask_segments: bool = True

@@ -71,7 +71,10 @@ class SolverStats:
         """One line; a failure names the worst violated constraint with its time."""
         pen = f"max penetration {self.max_penetration * 1e3:.1f} mm at t={self.max_penetration_time:.2f} s"
         if self.converged:
-            return f"converged in {self.iterations} iterations; max constraint violation " \
+            how = "converged"
+            if "Feasible_Objective_Stalled" in self.status:
+                how = "converged to a feasible point whose objective stalled (ipopt's optimality test not met)"
+            return f"{how} in {self.iterations} iterations; max constraint violation " \
                    f"{self.max_constraint_violation.text()}; {pen}"
         return (f"did not converge in {self.iterations} iterations ({self.status}); max constraint violation "
                 f"{self.max_constraint_violation.text()}; {pen}")

@@ -42,6 +42,12 @@ GUIDE_STAGE_MAX_ITER = 300
 #: tolerances, the last ~180 of them reducing the objective from 279 to 138 at constant violation)
 GUIDE_STAGE_TOLERANCES = {"tol": 1e-2, "acceptable_tol": 1e-1, "acceptable_constr_viol_tol": 1e-2,
                           "acceptable_iter": 3}
+#: status of a final stage stopped by the stall acceptance (Options.stall_iterations): every iterate of
+#: the last window was feasible and the objective no longer moved.  Measured on S1's carry (subtask
+#: 1): ipopt's dual infeasibility kept jumping between 2e-3 and 3e2 from one iteration to the next
+#: while the objective crept from 73.15 to 73.00 in 150 iterations at violation <= 5e-6, so neither
+#: its tolerance nor its acceptable test (10 acceptable iterations in a row) was ever met.
+STALLED_STATUS = "Feasible_Objective_Stalled"
 #: horizons up to this many knots are solved in one piece (segmenting only pays for long tasks)
 SEGMENT_MIN_KNOTS = 60
 
@@ -158,8 +164,15 @@ class _Run:
         self.iterations = 0
         self.stages: list = []
         self.timed_out = False
+        self.stalled = False
 
-    def sink(self, stage: str, lbg: np.ndarray, ubg: np.ndarray):
+    def sink(self, stage: str, lbg: np.ndarray, ubg: np.ndarray, stall: bool = False):
+        """Per-iteration hook; with ``stall`` it also applies the stall acceptance of Options."""
+        opt = self.prob.options
+        window = int(opt.stall_iterations) if stall else 0
+        history: list = []
+        self.stalled = False
+
         def fn(f, g):
             self.iterations += 1
             viol = float(np.max(np.maximum(np.maximum(lbg - g, g - ubg), 0.0), initial=0.0))
@@ -169,6 +182,14 @@ class _Run:
                     self.progress(Progress(self.iterations, f, viol, stage, elapsed))
                 except Exception:  # noqa: BLE001 - a broken logger must not kill the solve
                     pass
+            if window > 0:
+                history.append((float(f), viol))
+                recent = history[-(window + 1):]
+                if (len(recent) == window + 1 and viol <= opt.constr_tol
+                        and all(v <= opt.stall_constr_tol for _, v in recent)
+                        and abs(recent[0][0] - recent[-1][0]) <= opt.stall_rtol * max(1.0, abs(recent[-1][0]))):
+                    self.stalled = True
+                    return True
             if elapsed > self.prob.options.time_limit:
                 self.timed_out = True
                 return True
@@ -218,7 +239,7 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
         kind = "surrogate guide" if not last_stage else "final"
         stage_name = f"{label}{kind}"
         cb = _CALLBACKS[id(s)]
-        cb.sink = run.sink(stage_name, args["lbg"], args["ubg"])
+        cb.sink = run.sink(stage_name, args["lbg"], args["ubg"], stall=last_stage)
         t0 = time.perf_counter()
         try:
             sol = s(**args)
@@ -227,9 +248,13 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
         dt = time.perf_counter() - t0
         st = s.stats()
         status = st.get("return_status", "")
+        if run.stalled:
+            status = STALLED_STATUS
         warm_ok = _converged(status)
+        reg = np.asarray(st.get("iterations", {}).get("regularization_size", []), float)
         run.stages.append({"stage": stage_name, "exponent": expo, "hard": hard, "status": status,
-                           "iterations": int(st.get("iter_count", 0)), "time": dt, "timing": _timing_split(st, dt)})
+                           "iterations": int(st.get("iter_count", 0)), "time": dt, "timing": _timing_split(st, dt),
+                           "regularised_iterations": int(np.count_nonzero(reg > 0))})
         z0 = np.array(sol["x"]).ravel()
         lam_x = np.array(sol["lam_x"]).ravel()
         lam_g = np.array(sol["lam_g"]).ravel()
@@ -274,7 +299,7 @@ def _timing_split(st: dict, wall: float) -> dict:
 
 
 def _converged(status: str) -> bool:
-    return status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+    return status in ("Solve_Succeeded", "Solved_To_Acceptable_Level") or status.startswith(STALLED_STATUS)
 
 
 def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progress=None) -> TOResult:
@@ -320,7 +345,8 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
             for oid, j in sd.midx.items():
                 poses[oid] = Wm[win.W[f"o{j}_pose"], sd.grid.K - 1].copy()
         if converged:
-            status = "Solve_Succeeded"
+            stalled = [st["stage"].strip() for st in run.stages if st["status"] == STALLED_STATUS]
+            status = f"{STALLED_STATUS} ({'; '.join(stalled)})" if stalled else "Solve_Succeeded"
             z_st, lam_st = _stitch(win, data, parts)
             lbw, ubw, lbg, ubg, Pm, _ = data.fill(win, *homotopy_stages(opt)[-1])
             nlp = get_nlp(wd, data.structure, data.grid.K, threads)
@@ -334,7 +360,7 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
                     z, f, args, Pm, lbg, ubg = zp, fp, args_p, Pm_p, lbg_p, ubg_p
                     status = pst
                 else:
-                    status = f"subtasks converged; whole-horizon polish: {pst} (stitched subtask solution kept)"
+                    status = f"{status}; whole-horizon polish: {pst} (stitched subtask solution kept)"
         else:
             data, (z, _, _, _, nlp, args, Pm, lbg, ubg, f) = parts[-1]
     solve_time = time.perf_counter() - t_start - build_time
