@@ -2,7 +2,7 @@
 import numpy as np
 import pinocchio as pin
 
-from lomanip_to.model import FEET, HAND_POINT, SOLE_CENTER
+from lomanip_to.model import FEET, HAND_POINT, LIMBS, SOLE_CENTER
 
 
 def _random_state(g1, rng):
@@ -58,7 +58,7 @@ def test_kinematics_and_cmm_match_pinocchio(g1):
 
 
 def test_quasi_static_limb_torques_match_rnea_at_rest(g1):
-    """The TO's limb torque rows equal Pinocchio's RNEA at zero velocity and acceleration."""
+    """The TO's limb and waist torque rows equal Pinocchio's RNEA at zero velocity and acceleration."""
     m, d = g1.pin_model, g1.pin_model.createData()
     rng = np.random.default_rng(1)
     names = {limb: [m.names[j] for j in js] for limb, js in g1.limb_torque_joints.items()}
@@ -80,5 +80,6 @@ def test_quasi_static_limb_torques_match_rnea_at_rest(g1):
                                                  o.rotation.T @ (moment + np.cross(pt - o.translation, f)))
         tau = pin.rnea(m, d, q, np.zeros(35), np.zeros(35), fext)
         ours = g1.quasi_static_limb_torques(tree, wrenches)
-        for limb, js in g1.limb_torque_joints.items():
-            assert np.allclose(ours[limb], [tau[6 + j - 2] for j in js], atol=1e-9)
+        assert set(ours) == set(LIMBS) | {"waist"}
+        for group, (js, _) in g1.torque_row_joints.items():
+            assert np.allclose(ours[group], [tau[6 + j - 2] for j in js], atol=1e-9)

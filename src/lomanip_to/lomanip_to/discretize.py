@@ -80,7 +80,7 @@ def self_pairs(model: G1Model) -> tuple:
 
 #: sine of the largest tilt of a swing sole (3 deg: heel/toe at most ~5 mm lower than the sole centre)
 SWING_TILT = 0.05
-#: limb joint torques are held to this fraction of the G1 limits in the TO (quasi-static rows), so
+#: limb and waist joint torques are held to this fraction of the G1 limits in the TO (quasi-static rows), so
 #: that the inertia the rows leave out still fits under the limit in the a-posteriori RNEA check
 TORQUE_MARGIN = 0.8
 #: time (s) the nominal takes to stand up after the hands let go at the end of a task or segment
@@ -537,7 +537,7 @@ class ProblemData:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
             rows("floor clearance", k, 0, INF)  # smooth, so on in every homotopy stage
             # |tau| <= TORQUE_MARGIN tau_max: the rows leave out the distal links' inertia
-            rows("limb joint torques (quasi-static)", k, -TORQUE_MARGIN, TORQUE_MARGIN)
+            rows("joint torques (quasi-static)", k, -TORQUE_MARGIN, TORQUE_MARGIN)
 
         # ---------------- parameters
         kf_sub = {kf.subtask_index: kf for kf in prob.keyframes}

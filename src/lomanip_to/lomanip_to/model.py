@@ -347,7 +347,7 @@ class G1Model:
     def sphere_centers(self, tree):
         return [self.point_world(tree, s.joint, s.center) for s in self.spheres]
 
-    # ---------------------------------------------------------------- limb joint torques
+    # ---------------------------------------------------------------- joint torque rows
     @cached_property
     def limb_torque_joints(self) -> dict[str, list[int]]:
         """Per limb, the Pinocchio ids of the joints between the trunk and the contact (hip or
@@ -363,15 +363,29 @@ class G1Model:
             out[limb] = chain[::-1]
         return out
 
+    @cached_property
+    def torque_row_joints(self) -> dict[str, tuple[list[int], tuple[str, ...]]]:
+        """The joint groups of the TO's quasi-static torque rows: ``{group: (Pinocchio joint ids,
+        limbs whose contact wrenches load them)}``.  Each limb loads its own chain; the waist (yaw,
+        roll, pitch) carries the torso, both arms and both hands' contacts (S1's squat to lift the
+        box took the waist pitch to its 50 N m limit when only the limbs had rows)."""
+        m = self.pin_model
+        out = {limb: (js, (limb,)) for limb, js in self.limb_torque_joints.items()}
+        waist = [m.getJointId(n) for n in ("waist_yaw_joint", "waist_roll_joint", "waist_pitch_joint")]
+        out["waist"] = (waist, HANDS)
+        return out
+
     def quasi_static_limb_torques(self, tree, limb_wrenches: dict):
-        """Torques of the limb joints that hold the limbs still against gravity and the contacts.
+        """Torques of the limb and waist joints that hold the robot still against gravity and the
+        contacts.
 
         ``limb_wrenches[limb] = [(point, force), ...], moment`` in world frame (N, N m), acting ON
         the robot.  For a joint, only the links beyond it and their contacts count, so this is the
         static part of the joint torque (Pinocchio's RNEA at zero velocity and acceleration gives
         the same number, see the test).  Named simplification: the inertial terms of the distal
-        links (a hand, a shin and foot: light) are left out; the a-posteriori RNEA check has them.
-        Returns {limb: [tau_j for j in limb_torque_joints[limb]]}.
+        links are left out (a hand, a shin and foot are light; for the waist the torso and arms are
+        not, which the TO's 0.8 margin and the a-posteriori RNEA check cover).
+        Returns {group: [tau_j for j in torque_row_joints[group][0]]}.
         """
         m = self.pin_model
         subtree = {}
@@ -385,8 +399,12 @@ class G1Model:
                     ms = ms + subtree[ch][1]
             subtree[j] = (mc, ms)
         out = {}
-        for limb, joints in self.limb_torque_joints.items():
-            forces, moment = limb_wrenches.get(limb, ([], 0))
+        for group, (joints, limbs) in self.torque_row_joints.items():
+            forces, moment = [], 0
+            for limb in limbs:
+                fs, mo = limb_wrenches.get(limb, ([], 0))
+                forces = forces + list(fs)
+                moment = moment + mo
             taus = []
             for j in joints:
                 mc, ms = subtree[j]
@@ -396,7 +414,7 @@ class G1Model:
                     M = M + _cross(pt - pj, f)
                 axis = tree["R"][j][:, self._axes[j - 2]]
                 taus.append(-(axis.T @ M) if _lib(pj) is np else -ca.dot(axis, M))
-            out[limb] = taus
+            out[group] = taus
         return out
 
     @cached_property

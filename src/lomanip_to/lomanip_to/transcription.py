@@ -21,9 +21,9 @@ friction cone; hands: point on the object (relative to the object's pose when it
 the linearised cone of the object's surface normal; the object receives the opposite force (Newton's
 third law).  Objects: single rigid bodies (linear + angular momentum), supported/rolling patch
 contacts, nonholonomic rear axle, rigid attachment.
-Limb joint torques: the 26 hip-to-ankle and shoulder-to-wrist joints, quasi-static (gravity of the
-links beyond the joint plus the limb's contact wrench; the distal links' inertia is left out and
-covered by a margin), within a fraction of the G1's limits.
+Joint torques: the 26 hip-to-ankle and shoulder-to-wrist joints and the 3 waist joints,
+quasi-static (gravity of the links beyond the joint plus the contact wrenches they carry; the distal
+links' inertia is left out and covered by a margin), within a fraction of the G1's limits.
 Collisions: robot spheres vs object boxes: hard constraint on the exact signed distance, quadratic
 penalty on penetration, and a homotopy constraint + penalty (with slack) on a super-ellipsoid
 surrogate whose exponent is raised between solves (2 = ellipsoid -> box); self-collision sphere
@@ -226,8 +226,8 @@ class Window:
         wrenches = {f: ([(pt, mg * u) for pt, u in forces[4 * i:4 * i + 4]], 0) for i, f in enumerate(FEET)}
         wrenches.update({h: ([(limbs[h][0], mg * wa[f"u_{h}"])], mg * wa[f"tau_{h}"]) for h in HANDS})
         taus = m.quasi_static_limb_torques(tree, wrenches)
-        add("limb joint torques (quasi-static)",
-            ca.vertcat(*[taus[limb][i] / m.tau_max[j - 2] for limb, js in m.limb_torque_joints.items()
+        add("joint torques (quasi-static)",
+            ca.vertcat(*[taus[group][i] / m.tau_max[j - 2] for group, (js, _) in m.torque_row_joints.items()
                          for i, j in enumerate(js)]))
         torque = sum(ca.cross(pt - wa["com"], u) for pt, u in forces) + sum(wa[f"tau_{h}"] for h in HANDS)
 
