@@ -92,8 +92,9 @@ def plot_penetration(path: Path, title: str, curves: list) -> None:
     plt.close(fig)
 
 
-def run_case(model, scenario: str, over: dict, variant: str, out: Path, time_limit: float | None) -> dict:
-    opts = dict(VARIANTS[variant])
+def run_case(model, scenario: str, over: dict, variant: str, out: Path, time_limit: float | None,
+             extra: dict | None = None) -> dict:
+    opts = dict(VARIANTS[variant], **(extra or {}))
     if time_limit is not None:
         opts["time_limit"] = time_limit
     name = case_name(scenario, over)
@@ -148,9 +149,15 @@ def main(argv=None) -> int:
     ap.add_argument("--scenarios", nargs="+", default=list(SCENARIOS), choices=SCENARIOS)
     ap.add_argument("--variants", nargs="+", default=["all", "none"], choices=list(VARIANTS))
     ap.add_argument("--time-limit", type=float, default=None, help="per solve (s); default: Options")
+    ap.add_argument("--option", action="append", default=[], metavar="KEY=YAML",
+                    help="an Options field for every solve, e.g. --option guide_hessian=cost (repeatable)")
     ap.add_argument("--out", type=Path, default=ROOT / "runs" / "bench_to")
     a = ap.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
+    extra = {}
+    for item in a.option:
+        key, _, value = item.partition("=")
+        extra[key] = yaml.safe_load(value)
     model = G1Model()
     rows = []
     header = (f"{'case':<24} {'variant':<8} {'converged':<9} {'success':<7} {'iter':>5} {'build s':>7} "
@@ -159,7 +166,7 @@ def main(argv=None) -> int:
     for sc in a.scenarios:
         cells = grid(sc) if a.full else grid(sc)[:1]
         for over, variant in itertools.product(cells, a.variants):
-            r = run_case(model, sc, over, variant, a.out, a.time_limit)
+            r = run_case(model, sc, over, variant, a.out, a.time_limit, extra)
             rows.append(r)
             print(fmt_row(r), flush=True)
             (a.out / "summary.json").write_text(json.dumps({"rows": rows, "columns": COLUMNS}, indent=1))

@@ -39,6 +39,11 @@ class WindowDerivatives:
         H = ca.triu(H)
         self.H_sp = H.sparsity()
         self.F_h = ca.Function("win_h", [a, b, p, sig, lam], [ca.vertcat(*H.nonzeros())])
+        # the cost's Hessian alone, on the same sparsity (the constraints' curvature dropped, as in
+        # Gauss-Newton SQP and Crocoddyl's DDP): positive semi-definite where the cost is a sum of
+        # squares of nearly linear terms, so ipopt needs no inertia correction with it
+        Hc = ca.project(ca.triu(ca.hessian(sig * win.f, z)[0]), self.H_sp)
+        self.F_h_cost = ca.Function("win_h_cost", [a, b, p, sig, lam], [ca.vertcat(*Hc.nonzeros())])
         self.build_time = time.perf_counter() - t0
 
 
@@ -75,7 +80,6 @@ class AssembledNLP:
         gf_map = wd.F_gf.map(K, mode, threads) if mode == "thread" else wd.F_gf.map(K)
         j_map = wd.F_j.map(K, mode, threads) if mode == "thread" else wd.F_j.map(K)
         gr_map = wd.F_grad.map(K, mode, threads) if mode == "thread" else wd.F_grad.map(K)
-        h_map = wd.F_h.map(K, mode, threads) if mode == "thread" else wd.F_h.map(K)
         Gm, Fm = gf_map(A, B, Pm)
         g = ca.vec(Gm)
         f = ca.sum2(Fm)
@@ -114,17 +118,23 @@ class AssembledNLP:
                    np.ones(len(rows)))
         lam_f = ca.MX.sym("lam_f")
         lam_g = ca.MX.sym("lam_g", self.ngg)
-        Hm = h_map(A, B, Pm, ca.repmat(lam_f, 1, K), ca.reshape(lam_g, ng, K))
-        h_nz = ca.mtimes(Sh, ca.vec(Hm))
-        self.F_hess = ca.Function("hess_lag", [z, p, lam_f, lam_g], [ca.sparsity_cast(h_nz, sp_h)])
+        self.hessians = {}
+        for kind, F in (("exact", wd.F_h), ("cost", wd.F_h_cost)):
+            hm = F.map(K, mode, threads) if mode == "thread" else F.map(K)
+            Hm = hm(A, B, Pm, ca.repmat(lam_f, 1, K), ca.reshape(lam_g, ng, K))
+            h_nz = ca.mtimes(Sh, ca.vec(Hm))
+            self.hessians[kind] = ca.Function("hess_lag", [z, p, lam_f, lam_g], [ca.sparsity_cast(h_nz, sp_h)])
+        self.F_hess = self.hessians["exact"]
         self.nnz_hess = nu
         self.z_sym, self.p_sym = z, p
         self.f_expr, self.g_expr = f, g
         self.build_time = time.perf_counter() - t0
 
-    def solver(self, ipopt_opts: dict, iteration_callback=None) -> ca.Function:
+    def solver(self, ipopt_opts: dict, iteration_callback=None, hessian: str = "exact") -> ca.Function:
+        """ipopt on the assembled NLP; ``hessian`` "exact" (Lagrangian) or "cost" (constraint
+        curvature dropped)."""
         nlp = {"x": self.z_sym, "p": self.p_sym, "f": self.f_expr, "g": self.g_expr}
-        opts = {"grad_f": self.F_grad, "jac_g": self.F_jac, "hess_lag": self.F_hess,
+        opts = {"grad_f": self.F_grad, "jac_g": self.F_jac, "hess_lag": self.hessians[hessian],
                 "print_time": False, "ipopt": ipopt_opts}
         if iteration_callback is not None:
             opts["iteration_callback"] = iteration_callback

@@ -214,14 +214,18 @@ class Options:
     tol: float = 1e-4
     constr_tol: float = 1e-4
     time_limit: float = 600.0
-    #: stall acceptance of a final stage, for when ipopt creeps along a feasible valley without
-    #: meeting its dual test: stop and accept the point ("Feasible_Objective_Stalled") when the
-    #: current iterate is within constr_tol, each of the last ``stall_iterations`` iterates within
-    #: ``stall_constr_tol``, and the objective moved by at most ``stall_rtol`` (relative) over them.
-    #: Not a KKT certificate (docs/to.md); 0 iterations switches it off.
+    #: stall acceptance of a final stage, for when ipopt wanders along a feasible valley without
+    #: meeting its dual test (its violation oscillating between 1e-6 and 1e-3, say): stop when the
+    #: best feasible iterate (violation within constr_tol) already existed ``stall_iterations``
+    #: iterations ago and no feasible iterate since has lowered the objective by more than
+    #: ``stall_rtol`` (relative); the stage then returns that best feasible iterate
+    #: ("Feasible_Objective_Stalled").  Not a KKT certificate (docs/to.md); 0 switches it off.
     stall_iterations: int = 30
     stall_rtol: float = 1e-2
-    stall_constr_tol: float = 1e-3
+    #: Hessian ipopt gets in the homotopy guide stage and in the final stage: "exact" (Lagrangian)
+    #: or "cost" (the cost's Hessian only, constraint curvature dropped; see assembly)
+    guide_hessian: str = "exact"
+    final_hessian: str = "exact"
     print_level: int = 0
     #: solve subtask by subtask (at rest at subtask boundaries), stitch, then polish the whole horizon
     subtask_segments: bool = True

@@ -42,8 +42,8 @@ GUIDE_STAGE_MAX_ITER = 300
 #: tolerances, the last ~180 of them reducing the objective from 279 to 138 at constant violation)
 GUIDE_STAGE_TOLERANCES = {"tol": 1e-2, "acceptable_tol": 1e-1, "acceptable_constr_viol_tol": 1e-2,
                           "acceptable_iter": 3}
-#: status of a final stage stopped by the stall acceptance (Options.stall_iterations): every iterate of
-#: the last window was feasible and the objective no longer moved.  Measured on S1's carry (subtask
+#: status of a final stage stopped by the stall acceptance (Options.stall_iterations): the best
+#: feasible iterate stopped improving; the stage returns it.  Measured on S1's carry (subtask
 #: 1): ipopt's dual infeasibility kept jumping between 2e-3 and 3e2 from one iteration to the next
 #: while the objective crept from 73.15 to 73.00 in 150 iterations at violation <= 5e-6, so neither
 #: its tolerance nor its acceptable test (10 acceptable iterations in a row) was ever met.
@@ -109,25 +109,24 @@ class _IterationCallback(ca.Callback):
             names = ca.nlpsol_out()
             g = np.asarray(arg[names.index("g")]).ravel()
             f = float(arg[names.index("f")])
-            return [1 if self.sink(f, g) else 0]
+            point = lambda: tuple(np.array(arg[names.index(n)]).ravel() for n in ("x", "lam_x", "lam_g"))
+            return [1 if self.sink(f, g, point) else 0]
         return [0]
 
 
-def _make_solver(nlp: AssembledNLP, opts: dict):
+def _make_solver(nlp: AssembledNLP, opts: dict, hessian: str = "exact"):
     cb = _IterationCallback(f"progress_{len(_SOLVERS)}", nlp.nz, nlp.ngg, nlp.npar)
-    s = nlp.solver(opts, iteration_callback=cb)
+    s = nlp.solver(opts, iteration_callback=cb, hessian=hessian)
     _CALLBACKS[id(s)] = cb  # keep the callback alive with its solver
     return s
 
 
-def get_solver(wd, structure, K: int, ipopt_opts: dict, threads: int = 2, tag: str = "main"):
-    nkey = (structure, K)
-    if nkey not in _NLPS:
-        _NLPS[nkey] = AssembledNLP(wd, K, threads=threads)
-    nlp = _NLPS[nkey]
-    skey = (tag, nkey, tuple(sorted(ipopt_opts.items())))
+def get_solver(wd, structure, K: int, ipopt_opts: dict, threads: int = 2, tag: str = "main",
+               hessian: str = "exact"):
+    nlp = get_nlp(wd, structure, K, threads)
+    skey = (tag, hessian, (structure, K), tuple(sorted(ipopt_opts.items())))
     if skey not in _SOLVERS:
-        _SOLVERS[skey] = _make_solver(nlp, ipopt_opts)
+        _SOLVERS[skey] = _make_solver(nlp, ipopt_opts, hessian)
     return nlp, _SOLVERS[skey]
 
 
@@ -167,13 +166,16 @@ class _Run:
         self.stalled = False
 
     def sink(self, stage: str, lbg: np.ndarray, ubg: np.ndarray, stall: bool = False):
-        """Per-iteration hook; with ``stall`` it also applies the stall acceptance of Options."""
+        """Per-iteration hook ``fn(f, g, point=None)``; ``point()`` gives (x, lam_x, lam_g) of the
+        iterate.  With ``stall`` it also applies the stall acceptance of Options and keeps the best
+        feasible iterate in ``self.best`` (f, x, lam_x, lam_g)."""
         opt = self.prob.options
         window = int(opt.stall_iterations) if stall else 0
-        history: list = []
+        best_f: list = []  # best feasible objective after each iteration (inf before the first)
         self.stalled = False
+        self.best = None
 
-        def fn(f, g):
+        def fn(f, g, point=None):
             self.iterations += 1
             viol = float(np.max(np.maximum(np.maximum(lbg - g, g - ubg), 0.0), initial=0.0))
             elapsed = time.perf_counter() - self.t_start
@@ -183,13 +185,13 @@ class _Run:
                 except Exception:  # noqa: BLE001 - a broken logger must not kill the solve
                     pass
             if window > 0:
-                history.append((float(f), viol))
-                recent = history[-(window + 1):]
-                if (len(recent) == window + 1 and viol <= opt.constr_tol
-                        and all(v <= opt.stall_constr_tol for _, v in recent)
-                        and abs(recent[0][0] - recent[-1][0]) <= opt.stall_rtol * max(1.0, abs(recent[-1][0]))):
-                    self.stalled = True
-                    return True
+                if viol <= opt.constr_tol and (self.best is None or f < self.best[0]):
+                    self.best = (float(f),) + (point() if point is not None else (None, None, None))
+                best_f.append(self.best[0] if self.best is not None else np.inf)
+                if len(best_f) > window and np.isfinite(best_f[-window - 1]):
+                    if best_f[-window - 1] - best_f[-1] <= opt.stall_rtol * max(1.0, abs(best_f[-1])):
+                        self.stalled = True
+                        return True
             if elapsed > self.prob.options.time_limit:
                 self.timed_out = True
                 return True
@@ -233,7 +235,8 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
             # bounds for hundreds of iterations; hand over the primal point only, barrier from scratch
             args["x0"] = np.clip(z0, args["lbx"], args["ubx"])
             o, tag = dict(base), "main"
-        nlp, s = get_solver(wd, data.structure, K, o, threads, tag)
+        hessian = opt.final_hessian if last_stage else opt.guide_hessian
+        nlp, s = get_solver(wd, data.structure, K, o, threads, tag, hessian)
         if z0 is not None and hom:
             args["x0"] = np.clip(_feasible_slacks(win, nlp, K, args["x0"], args["p"]), args["lbx"], args["ubx"])
         kind = "surrogate guide" if not last_stage else "final"
@@ -258,10 +261,13 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
         z0 = np.array(sol["x"]).ravel()
         lam_x = np.array(sol["lam_x"]).ravel()
         lam_g = np.array(sol["lam_g"]).ravel()
+        f_sol = float(sol["f"])
+        if run.stalled and run.best is not None and run.best[1] is not None:
+            f_sol, z0, lam_x, lam_g = run.best  # the best feasible iterate, not ipopt's last one
         if run.timed_out:
             status = f"time limit {opt.time_limit:.0f} s reached"
             break
-    return z0, lam_x, lam_g, status, nlp, args, Pm, lbg, ubg, float(sol["f"])
+    return z0, lam_x, lam_g, status, nlp, args, Pm, lbg, ubg, f_sol
 
 
 def _feasible_slacks(win: Window, nlp: AssembledNLP, K: int, z: np.ndarray, p: np.ndarray) -> np.ndarray:
