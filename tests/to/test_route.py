@@ -63,6 +63,6 @@ def test_s2_walk_to_the_handle_goes_round_the_trolley(s2, g1):
     last = data.routes[-1]          # placing pose at the trolley's side -> behind its handle
     assert len(last) > 2
     assert _clearance(last, fp) >= 0.25
-    # the warm start follows it: on the walk round (8.8-15.4 s) the base keeps clear of the trolley
-    walk = (data.grid.t >= 8.8) & (data.grid.t <= 15.4)
+    # the warm start follows it: on the walk round (8.8-15.8 s) the base keeps clear of the trolley
+    walk = (data.grid.t >= 8.8) & (data.grid.t <= 15.8)
     assert min(fp.distance(x[:2]) for x in data.x_guess[walk]) > 0.2

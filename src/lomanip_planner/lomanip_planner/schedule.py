@@ -76,6 +76,7 @@ class Timing:
     manipulate: float = 0.8         # lift / lower
     release: float = 0.4            # hands still in contact after the object rests
     retract: float = 0.6            # hands back, double support
+    weight_shift: float = 0.4       # double support before the first step of a subtask (it starts at rest)
 
 
 @dataclass
@@ -177,6 +178,10 @@ class _Builder:
         moving = [f for f in FEET if f in targets and (moves[f] > 0.02 or targets[f][1] != self.stance.surface(f))]
         if not moving:
             return
+        if not self.phases or self.phases[-1].subtask_index != subtask:
+            # the TO solves subtask by subtask, each starting at rest: moving the CoM over the stance
+            # foot takes a double support before the first swing (without it the TO whipped the hips)
+            self.add(tm.weight_shift, subtask, objects=objects)
         route = self._route(targets)
         n = max(1, math.ceil(max([moves[f] for f in moving] + [route_length(route)]) / tm.max_step_length))
         starts = {f: self.stance.foot(f).copy() for f in moving}

@@ -669,10 +669,12 @@ class ProblemData:
         h1 = self._surface_height(c1) if c1 is not None else 0.0
         s = (self.grid.t[k] - self.grid.t[k0]) / max(self.grid.t[k1] - self.grid.t[k0], 1e-6)
         top = max(h0, h1) + self.w["swing_clearance"]
-        # rise to 'top' quickly, stay, come down: smooth bump
-        bump = math.sin(math.pi * s)
+        # rise to 'top' in the first 40 % of the swing, stay, come down in the last 40 %: smoothsteps,
+        # so the foot leaves and lands at rest (the earlier sine bump clipped at 1.6x put a foot 61 %
+        # of the way up to S1's box top 0.1 s after lift-off, and the TO whipped the hips to follow)
+        bump = min(_smoothstep(s / 0.4), _smoothstep((1.0 - s) / 0.4))
         base = (1 - s) * h0 + s * h1
-        return base + (top - base) * min(1.0, 1.6 * bump)
+        return base + (top - base) * bump
 
     def _hand_params(self, k, h, col, P):
         c = self.contact(k, h)

@@ -142,6 +142,11 @@ def footholds(data, x_nom: np.ndarray) -> dict:
                 P[k] = _foot_pose(model, x_nom[k], f)
             out[f] = P
             continue
+        if holds[0][0] > 0:
+            # the foot swings from knot 0 on (a segment that starts with a step): it leaves from where
+            # it is, not from its first foothold (which put it on the box top 0.1 s into S1's last
+            # subtask, 0.43 m ahead and 0.3 m up)
+            holds.insert(0, (0, 0, _foot_pose(model, data.x_init, f)))
         for i, (k0, k1, pose) in enumerate(holds):
             P[k0:k1 + 1] = pose
             nxt = holds[i + 1] if i + 1 < len(holds) else None
@@ -155,8 +160,6 @@ def footholds(data, x_nom: np.ndarray) -> dict:
                 q[3] = pose[3] + s * math.remainder(pb[3] - pose[3], 2 * math.pi)
                 q[2] = data._swing_height(k, f)
                 P[k] = q
-        first = holds[0]
-        P[:first[0]] = first[2]
         out[f] = P
     return out
 
