@@ -229,8 +229,10 @@ class Options:
     print_level: int = 0
     #: solve subtask by subtask (at rest at subtask boundaries), stitch, then polish the whole horizon
     subtask_segments: bool = True
-    #: iteration cap of the whole-horizon polish after the subtask solves (0 = keep the stitched one)
-    polish_iterations: int = 60
+    #: iteration cap of the whole-horizon polish after the subtask solves (0 = keep the stitched one).
+    #: Off by default: on S1 it never converged within 60 iterations and cost 90-150 s a run
+    #: (docs/to.md); the stitched trajectory is evaluated on the whole problem's rows and checked as it is.
+    polish_iterations: int = 0
     #: collision sphere groups checked against objects ("minimal collision set")
     collision_groups: tuple = ("left_foot", "right_foot", "left_shin", "right_shin", "left_thigh",
                                "right_thigh", "pelvis", "torso", "left_hand", "right_hand",
