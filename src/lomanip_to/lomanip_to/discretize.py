@@ -786,7 +786,7 @@ class ProblemData:
                 if cc is None or cc.object_id != oid:
                     continue
                 side = limb.split("_")[0]
-                if limb in HANDS and grp in (f"{side}_hand", f"{side}_wrist", f"{side}_forearm"):
+                if limb in HANDS and grp in (f"{side}_hand", f"{side}_forearm"):
                     return False
                 if limb in FEET and grp == f"{side}_foot":
                     return False

@@ -236,7 +236,7 @@ class Options:
     #: collision sphere groups checked against objects ("minimal collision set")
     collision_groups: tuple = ("left_foot", "right_foot", "left_shin", "right_shin", "left_thigh",
                                "right_thigh", "pelvis", "torso", "left_hand", "right_hand",
-                               "left_wrist", "right_wrist", "left_forearm", "right_forearm")
+                               "left_forearm", "right_forearm")
     self_collision: bool = True
     weights: dict = field(default_factory=dict)
     #: extra ipopt options (expert use; e.g. {"mu_strategy": "monotone"})
