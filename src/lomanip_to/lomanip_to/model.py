@@ -269,15 +269,6 @@ class G1Model:
                 0.6, 0.6)
             out.append(CollisionSphere(f"{s}_hand", jid(f"{s}_wrist_yaw_joint"),
                                        np.array([0.07, 0.0, 0.0]), 0.04, f"{s}_hand"))
-        # self-collision only: the wrist link and the hip roll link (the G1's arms hang 5-8 cm from
-        # its hips; executed, an arm swing that the hand/thigh pairs allowed knocked the wrist into
-        # the hip roll link and twisted the stance hip yaw by 1.4 rad). Centres from the MJCF
-        # geoms in their body frames.
-        for s in ("left", "right"):
-            out.append(CollisionSphere(f"{s}_wrist", jid(f"{s}_wrist_yaw_joint"), np.array([0.01, 0.0, 0.0]),
-                                       0.04, f"{s}_wrist"))
-            out.append(CollisionSphere(f"{s}_hip", jid(f"{s}_hip_roll_joint"), np.array([0.036, 0.0, -0.05]),
-                                       0.07, f"{s}_hip"))
         return out
 
     # ---------------------------------------------------------------- symbolic kinematics
