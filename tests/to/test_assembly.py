@@ -32,3 +32,9 @@ def test_assembled_derivatives_match_casadi(g1):
     Href = ca.Function("H", [nlp.z_sym, nlp.p_sym, lf, lg], [ca.triu(H)])(z, p, 0.7, lam_g)
     Hs = nlp.F_hess(z, p, 0.7, lam_g)
     assert np.allclose(np.array(ca.densify(Hs)), np.array(ca.densify(Href)), atol=1e-7)
+    # the "cost" Hessian (Options.guide_hessian / final_hessian) is the exact one without the
+    # constraints' curvature: whatever the multipliers, it equals the exact one at lam_g = 0
+    Hc = nlp.hessian("cost")(z, p, 0.7, lam_g)
+    H0 = nlp.F_hess(z, p, 0.7, np.zeros(nlp.ngg))
+    assert np.allclose(np.array(ca.densify(Hc)), np.array(ca.densify(H0)), atol=1e-9)
+    assert not np.allclose(np.array(ca.densify(Hc)), np.array(ca.densify(Hs)), atol=1e-6)

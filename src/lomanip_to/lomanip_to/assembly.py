@@ -10,6 +10,7 @@ build the derivatives of the expanded global NLP took 24 s at N=20 and 133 s at 
 from __future__ import annotations
 
 import time
+from functools import cached_property
 
 import casadi as ca
 import numpy as np
@@ -39,12 +40,16 @@ class WindowDerivatives:
         H = ca.triu(H)
         self.H_sp = H.sparsity()
         self.F_h = ca.Function("win_h", [a, b, p, sig, lam], [ca.vertcat(*H.nonzeros())])
-        # the cost's Hessian alone, on the same sparsity (the constraints' curvature dropped, as in
-        # Gauss-Newton SQP and Crocoddyl's DDP): positive semi-definite where the cost is a sum of
-        # squares of nearly linear terms, so ipopt needs no inertia correction with it
-        Hc = ca.project(ca.triu(ca.hessian(sig * win.f, z)[0]), self.H_sp)
-        self.F_h_cost = ca.Function("win_h_cost", [a, b, p, sig, lam], [ca.vertcat(*Hc.nonzeros())])
+        self._win, self._sym = win, (a, b, p, sig, lam, z)
         self.build_time = time.perf_counter() - t0
+
+    @cached_property
+    def F_h_cost(self) -> ca.Function:
+        """The cost's Hessian alone, on the Lagrangian's sparsity (the constraints' curvature
+        dropped, as in Gauss-Newton SQP and Crocoddyl's DDP); built only when a solve asks for it."""
+        a, b, p, sig, lam, z = self._sym
+        Hc = ca.project(ca.triu(ca.hessian(sig * self._win.f, z)[0]), self.H_sp)
+        return ca.Function("win_h_cost", [a, b, p, sig, lam], [ca.vertcat(*Hc.nonzeros())])
 
 
 def _ccs_from_triplets(nrow, ncol, rows, cols):
@@ -116,25 +121,33 @@ class AssembledNLP:
         sp_h, inv_h, nu = _ccs_from_triplets(self.nz, self.nz, rows, cols)
         Sh = ca.DM(ca.Sparsity.triplet(nu, len(rows), inv_h.tolist(), list(range(len(rows)))),
                    np.ones(len(rows)))
-        lam_f = ca.MX.sym("lam_f")
-        lam_g = ca.MX.sym("lam_g", self.ngg)
-        self.hessians = {}
-        for kind, F in (("exact", wd.F_h), ("cost", wd.F_h_cost)):
-            hm = F.map(K, mode, threads) if mode == "thread" else F.map(K)
-            Hm = hm(A, B, Pm, ca.repmat(lam_f, 1, K), ca.reshape(lam_g, ng, K))
-            h_nz = ca.mtimes(Sh, ca.vec(Hm))
-            self.hessians[kind] = ca.Function("hess_lag", [z, p, lam_f, lam_g], [ca.sparsity_cast(h_nz, sp_h)])
-        self.F_hess = self.hessians["exact"]
+        self._wd, self._hess_args = wd, (z, p, A, B, Pm, Sh, sp_h, mode, threads)
+        self._hessians: dict = {}
+        self.F_hess = self.hessian("exact")
         self.nnz_hess = nu
         self.z_sym, self.p_sym = z, p
         self.f_expr, self.g_expr = f, g
         self.build_time = time.perf_counter() - t0
 
+    def hessian(self, kind: str = "exact") -> ca.Function:
+        """``hess_lag(z, p, lam_f, lam_g)`` of the whole NLP: "exact" (Lagrangian) or "cost"."""
+        if kind not in self._hessians:
+            z, p, A, B, Pm, Sh, sp_h, mode, threads = self._hess_args
+            F = {"exact": self._wd.F_h, "cost": self._wd.F_h_cost}[kind]
+            K, ng = self.K, self._wd.ng
+            lam_f = ca.MX.sym("lam_f")
+            lam_g = ca.MX.sym("lam_g", self.ngg)
+            hm = F.map(K, mode, threads) if mode == "thread" else F.map(K)
+            Hm = hm(A, B, Pm, ca.repmat(lam_f, 1, K), ca.reshape(lam_g, ng, K))
+            h_nz = ca.mtimes(Sh, ca.vec(Hm))
+            self._hessians[kind] = ca.Function("hess_lag", [z, p, lam_f, lam_g], [ca.sparsity_cast(h_nz, sp_h)])
+        return self._hessians[kind]
+
     def solver(self, ipopt_opts: dict, iteration_callback=None, hessian: str = "exact") -> ca.Function:
         """ipopt on the assembled NLP; ``hessian`` "exact" (Lagrangian) or "cost" (constraint
         curvature dropped)."""
         nlp = {"x": self.z_sym, "p": self.p_sym, "f": self.f_expr, "g": self.g_expr}
-        opts = {"grad_f": self.F_grad, "jac_g": self.F_jac, "hess_lag": self.hessians[hessian],
+        opts = {"grad_f": self.F_grad, "jac_g": self.F_jac, "hess_lag": self.hessian(hessian),
                 "print_time": False, "ipopt": ipopt_opts}
         if iteration_callback is not None:
             opts["iteration_callback"] = iteration_callback
