@@ -89,3 +89,9 @@ def test_solve_rejects_before_building(lift, g1):
     with pytest.raises(ProblemError) as ei:
         solver.solve(p, g1)
     assert ei.value.code == UNKNOWN_OBJECT
+
+
+def test_unknown_hessian_option(lift, g1):
+    p = copy.deepcopy(lift)
+    p.options = p.options.replaced(guide_hessian="gauss-newton")
+    _expect(p, g1, INVALID_REQUEST, "options.guide_hessian must be one of exact, cost")

@@ -195,6 +195,10 @@ class PlacementGoal:
     weight: float = 1e3
 
 
+#: Hessians the solver can hand ipopt (Options.guide_hessian / final_hessian, assembly.AssembledNLP.hessian)
+HESSIANS = ("exact", "cost")
+
+
 @dataclass
 class Options:
     use_keyframe_base_cost: bool = True
@@ -293,6 +297,10 @@ def _finite(arr, n: int | None, where: str) -> np.ndarray:
 
 def validate_problem(prob: Problem, model=None) -> None:
     """Check a problem before solving; raise :class:`ProblemError` on the first defect."""
+    for name in ("guide_hessian", "final_hessian"):
+        if getattr(prob.options, name) not in HESSIANS:
+            raise ProblemError(INVALID_REQUEST, f"options.{name} must be one of {', '.join(HESSIANS)}, "
+                                                f"not {getattr(prob.options, name)!r}", "options")
     ids = set()
     for i, o in enumerate(prob.objects):
         w = f"objects[{i}] ({o.id})"

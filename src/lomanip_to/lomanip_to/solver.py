@@ -24,7 +24,7 @@ from .checks import penetration_per_knot, run_checks
 from .discretize import ProblemData
 from .model import FEET, HANDS, LIMBS, SOLE_CORNERS, G1Model, rpy_to_rot
 from .problem import TO_NOT_CONVERGED, Problem, validate_problem
-from .result import Progress, SolverStats, TOResult, Violation
+from .result import STALLED_STATUS, Progress, SolverStats, TOResult, Violation
 from .transcription import Window
 
 _WINDOWS: dict = {}
@@ -42,12 +42,6 @@ GUIDE_STAGE_MAX_ITER = 300
 #: tolerances, the last ~180 of them reducing the objective from 279 to 138 at constant violation)
 GUIDE_STAGE_TOLERANCES = {"tol": 1e-2, "acceptable_tol": 1e-1, "acceptable_constr_viol_tol": 1e-2,
                           "acceptable_iter": 3}
-#: status of a final stage stopped by the stall acceptance (Options.stall_iterations): the best
-#: feasible iterate stopped improving; the stage returns it.  Measured on S1's carry (subtask
-#: 1): ipopt's dual infeasibility kept jumping between 2e-3 and 3e2 from one iteration to the next
-#: while the objective crept from 73.15 to 73.00 in 150 iterations at violation <= 5e-6, so neither
-#: its tolerance nor its acceptable test (10 acceptable iterations in a row) was ever met.
-STALLED_STATUS = "Feasible_Objective_Stalled"
 #: horizons up to this many knots are solved in one piece (segmenting only pays for long tasks)
 SEGMENT_MIN_KNOTS = 60
 
