@@ -118,13 +118,17 @@ def momentum_rate_residual(model: G1Model, res):
 
 
 def foot_slip(res):
-    """Max displacement (m) of a foot sole centre between consecutive knots in contact."""
+    """Max displacement (m) of a foot sole centre over an interval whose start knot carries its force.
+
+    Forces are explicit (u_k acts over [t_k, t_k+1]), so a foot in contact at knot k must still be at
+    the same place at k+1, also when k+1 is the first swing knot (lift-off).
+    """
     worst, where = 0.0, ("", 0.0)
     for f in FEET:
         P = res.points_knots[f]
         obj = res.contact_objects_knots[f]
         for k in range(len(obj) - 1):
-            if obj[k] and obj[k] == obj[k + 1]:
+            if obj[k] and (obj[k] == obj[k + 1] or not obj[k + 1]):
                 d = float(np.linalg.norm(P[k + 1] - P[k]))
                 if d > worst:
                     worst, where = d, (f, res.t_knots[k])

@@ -502,8 +502,13 @@ class ProblemData:
                     if k == 0:  # the start is given: see _initial_tilt
                         tilt = self._initial_tilt(f)
                         rows(f"{f} orientation aligned with surface", k, np.minimum(tilt, 0), np.maximum(tilt, 0))
-                if c is None or cn is None or cn.object_id != c.object_id:
+                if c is None or last or (cn is not None and cn.object_id != c.object_id):
                     rows(f"{f} no slip", k, -INF, INF)
+                elif cn is not None:  # stance -> stance: z is held by both knots' "on surface" rows
+                    rows(f"{f} no slip", k, [0, 0, -INF, 0], [0, 0, INF, 0])
+                # else lift-off: the last contact force acts until t_k+1, so the sole is still
+                # planted there (xyz and yaw); without this the first swing knot could be 15 cm
+                # ahead while the interval before it carried 270 N (S1), which no controller can track
                 rows(f"{f} friction cone", k, 0 if c is not None else -INF, INF)
             for h in HANDS:
                 if self.contact(k, h) is None:
@@ -661,6 +666,8 @@ class ProblemData:
         k0 = k
         while k0 > 0 and self.contact(k0, f) is None:
             k0 -= 1
+        if self.contact(k0, f) is not None and k0 < k:
+            k0 += 1  # the lift-off knot is still planted (see the no-slip rows): the swing starts there
         k1 = k
         while k1 < K - 1 and self.contact(k1, f) is None:
             k1 += 1

@@ -16,7 +16,8 @@ cost.  Dynamics rows (k -> k+1, explicit in forces, symplectic in positions):
   kk_{k+1} - kk_k = dt g sum (p_i - r_k) x u_i,k                (Euler, angular momentum)
 Knot rows: r_k = CoM(x_k); [m c_k; m kk_k] = A(x_k) xd_k (centroidal momentum matrix).
 Contacts: sole on the surface plane and level (patch orientation), centre inside the surface
-rectangle, no slip between knots (xy and yaw), corner forces in a linearised (inner pyramid)
+rectangle, no slip between knots (xy and yaw; at lift-off also z: the force u_k of the last
+contact knot acts over [t_k, t_k+1], so the sole stays planted until t_k+1), corner forces in a linearised (inner pyramid)
 friction cone; hands: point on the object (relative to the object's pose when it moves) and force in
 the linearised cone of the object's surface normal; the object receives the opposite force (Newton's
 third law).  Objects: single rigid bodies (linear + angular momentum), supported/rolling patch
@@ -254,7 +255,8 @@ class Window:
                 ca.vertcat(patch[2] * dxy[0] + patch[3] * dxy[1], -patch[3] * dxy[0] + patch[2] * dxy[1]))
             heading_a = R[0:2, 0]
             heading_b = R_b[0:2, 0]
-            add(f"{f} no slip", ca.vertcat(pt_b[0:2] - pt[0:2],
+            # xy, z, yaw; z is bounded only at lift-off (both knots' "on surface" rows cover it otherwise)
+            add(f"{f} no slip", ca.vertcat(pt_b[0:3] - pt[0:3],
                                            heading_a[0] * heading_b[1] - heading_a[1] * heading_b[0]))
             u = ca.reshape(wa[f"u_{f}"], 3, 4)
             cones = []

@@ -142,7 +142,8 @@ def footholds(data, x_nom: np.ndarray) -> dict:
                 P[k] = _foot_pose(model, x_nom[k], f)
             out[f] = P
             continue
-        if holds[0][0] > 0:
+        swings_first = holds[0][0] > 0
+        if swings_first:
             # the foot swings from knot 0 on (a segment that starts with a step): it leaves from where
             # it is, not from its first foothold (which put it on the box top 0.1 s into S1's last
             # subtask, 0.43 m ahead and 0.3 m up)
@@ -154,6 +155,9 @@ def footholds(data, x_nom: np.ndarray) -> dict:
                 P[k1 + 1:] = pose
                 continue
             ka, kb, pb = k1, nxt[0], nxt[2]
+            if not (i == 0 and swings_first):  # a lift-off knot is still planted (the no-slip rows)
+                ka = min(k1 + 1, kb - 1)
+                P[ka] = pose
             for k in range(ka + 1, kb):
                 s = (t[k] - t[ka]) / max(t[kb] - t[ka], 1e-9)
                 q = pose + s * (pb - pose)
