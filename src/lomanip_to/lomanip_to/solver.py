@@ -12,6 +12,7 @@ sharper surrogate and the hard penetration constraint.
 
 from __future__ import annotations
 
+import hashlib
 import re
 import resource
 import time
@@ -108,19 +109,27 @@ class _IterationCallback(ca.Callback):
         return [0]
 
 
-def _make_solver(nlp: AssembledNLP, opts: dict, hessian: str = "exact"):
-    cb = _IterationCallback(f"progress_{len(_SOLVERS)}", nlp.nz, nlp.ngg, nlp.npar)
-    s = nlp.solver(opts, iteration_callback=cb, hessian=hessian)
+def _make_solver(nlp: AssembledNLP, opts: dict, hessian: str = "exact", rows: np.ndarray | None = None):
+    ng = nlp.ngg if rows is None else len(rows)
+    cb = _IterationCallback(f"progress_{len(_SOLVERS)}", nlp.nz, ng, nlp.npar)
+    s = nlp.solver(opts, iteration_callback=cb, hessian=hessian, rows=rows)
     _CALLBACKS[id(s)] = cb  # keep the callback alive with its solver
     return s
 
 
+def active_rows(lbg: np.ndarray, ubg: np.ndarray) -> np.ndarray:
+    """Indices of the constraint rows with a finite bound (the others are switched off)."""
+    return np.flatnonzero(np.isfinite(lbg) | np.isfinite(ubg))
+
+
 def get_solver(wd, structure, K: int, ipopt_opts: dict, threads: int = 2, tag: str = "main",
-               hessian: str = "exact"):
+               hessian: str = "exact", rows: np.ndarray | None = None):
+    """Cached ipopt solver per (structure, K, options, active rows)."""
     nlp = get_nlp(wd, structure, K, threads)
-    skey = (tag, hessian, (structure, K), tuple(sorted(ipopt_opts.items())))
+    rkey = None if rows is None else hashlib.sha1(np.asarray(rows, np.int64).tobytes()).hexdigest()
+    skey = (tag, hessian, (structure, K), tuple(sorted(ipopt_opts.items())), rkey)
     if skey not in _SOLVERS:
-        _SOLVERS[skey] = _make_solver(nlp, ipopt_opts, hessian)
+        _SOLVERS[skey] = _make_solver(nlp, ipopt_opts, hessian, rows)
     return nlp, _SOLVERS[skey]
 
 
@@ -230,16 +239,20 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
             args["x0"] = np.clip(z0, args["lbx"], args["ubx"])
             o, tag = dict(base), "main"
         hessian = opt.final_hessian if last_stage else opt.guide_hessian
-        nlp, s = get_solver(wd, data.structure, K, o, threads, tag, hessian)
+        rows = active_rows(args["lbg"], args["ubg"])
+        nlp, s = get_solver(wd, data.structure, K, o, threads, tag, hessian, rows)
         if z0 is not None and hom:
             args["x0"] = np.clip(_feasible_slacks(win, nlp, K, args["x0"], args["p"]), args["lbx"], args["ubx"])
         kind = "surrogate guide" if not last_stage else "final"
         stage_name = f"{label}{kind}"
         cb = _CALLBACKS[id(s)]
-        cb.sink = run.sink(stage_name, args["lbg"], args["ubg"], stall=last_stage)
+        cb.sink = run.sink(stage_name, args["lbg"][rows], args["ubg"][rows], stall=last_stage)
+        call = dict(args, lbg=args["lbg"][rows], ubg=args["ubg"][rows])
+        if "lam_g0" in call:
+            call["lam_g0"] = np.asarray(call["lam_g0"])[rows]
         t0 = time.perf_counter()
         try:
-            sol = s(**args)
+            sol = s(**call)
         finally:
             cb.sink = None
         dt = time.perf_counter() - t0
@@ -258,10 +271,17 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
         f_sol = float(sol["f"])
         if run.stalled and run.best is not None and run.best[1] is not None:
             f_sol, z0, lam_x, lam_g = run.best  # the best feasible iterate, not ipopt's last one
+        lam_g = _scatter(lam_g, rows, nlp.ngg)  # multipliers of the switched-off rows are 0
         if run.timed_out:
             status = f"time limit {opt.time_limit:.0f} s reached"
             break
     return z0, lam_x, lam_g, status, nlp, args, Pm, lbg, ubg, f_sol
+
+
+def _scatter(values: np.ndarray, rows: np.ndarray, n: int) -> np.ndarray:
+    out = np.zeros(n)
+    out[rows] = np.asarray(values, float).ravel()
+    return out
 
 
 def _feasible_slacks(win: Window, nlp: AssembledNLP, K: int, z: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -321,7 +341,7 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
     run = _Run(prob, progress, t_start)
     segs = segments(prob) if opt.subtask_segments and data.grid.K > SEGMENT_MIN_KNOTS else []
     if len(segs) <= 1:
-        get_solver(wd, data.structure, data.grid.K, _ipopt_options(opt), threads)  # assemble before timing
+        get_nlp(wd, data.structure, data.grid.K, threads)  # assemble before timing
         build_time = time.perf_counter() - t_start
         z, _, _, status, nlp, args, Pm, lbg, ubg, f = _run_stages(run, data, win, wd, threads, "")
         converged = _converged(status)
