@@ -511,8 +511,11 @@ class ProblemData:
                 # ahead while the interval before it carried 270 N (S1), which no controller can track
                 rows(f"{f} friction cone", k, 0 if c is not None else -INF, INF)
             for h in HANDS:
-                if self.contact(k, h) is None:
+                ch = self.contact(k, h)
+                if ch is None:
                     rows(f"{h} contact position", k, -INF, INF)
+                if ch is None or last or self.contact(k + 1, h) is not None:
+                    rows(f"{h} release: still at the contact", k, -INF, INF)
                 rows(f"{h} friction cone", k, 0 if self.contact(k, h) is not None else -INF, INF)
                 rows(f"{h} patch moment", k, 0 if self.contact(k, h) is not None else -INF, INF)
             for oid, j in self.midx.items():

@@ -206,6 +206,7 @@ class Window:
             return pose[0:3], pose[3:6], rpy_to_rot(pose[3:6])
 
         objs_a = [obj_state(wa, j) for j in range(M)]
+        objs_b = [obj_state(wb, j) for j in range(M)]
 
         # ---- forces (robot scaled by m g)
         feet_pts = {}
@@ -276,12 +277,16 @@ class Window:
             loc = pp[f"{h}_loc"]
             Rsel = sel[0] * ca.SX.eye(3)
             target = sel[0] * loc
+            target_b = sel[0] * loc
             for j in range(M):
                 pj, _, Rj = objs_a[j]
                 Rsel = Rsel + sel[j + 1] * Rj
                 target = target + sel[j + 1] * (pj + Rj @ loc)
+                target_b = target_b + sel[j + 1] * (objs_b[j][0] + objs_b[j][2] @ loc)
             pt = limbs[h][0]
             add(f"{h} contact position", pt - target)
+            # on at release only: u_k acts over [t_k, t_k+1], so the hand still touches at k+1
+            add(f"{h} release: still at the contact", limbs_b[h][0] - target_b)
             n = Rsel @ pp[f"{h}_n"]
             t1 = Rsel @ pp[f"{h}_t1"]
             t2 = Rsel @ pp[f"{h}_t2"]
