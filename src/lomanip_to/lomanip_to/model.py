@@ -269,6 +269,11 @@ class G1Model:
                 0.6, 0.6)
             out.append(CollisionSphere(f"{s}_hand", jid(f"{s}_wrist_yaw_joint"),
                                        np.array([0.07, 0.0, 0.0]), 0.04, f"{s}_hand"))
+            # the fingers: the rubber hand reaches 0.17 m past the wrist-yaw joint (the sim's hand
+            # collision box); without this sphere S2's reach for the box put the hand tips 3-5 cm
+            # into the table top in execution
+            out.append(CollisionSphere(f"{s}_hand_tip", jid(f"{s}_wrist_yaw_joint"),
+                                       np.array([0.135, 0.0, 0.0]), 0.04, f"{s}_hand"))
         return out
 
     # ---------------------------------------------------------------- symbolic kinematics
