@@ -18,7 +18,8 @@ momentum and the centroidal momentum matrix against Pinocchio to 1e-9.
 
 Contact frames (simplifications named):
 * feet: the sole is a rectangle given by the four MJCF foot spheres (``class="foot"``) moved down
-  by their 5 mm radius; each foot carries four corner forces.
+  by their 5 mm radius; each foot carries four corner forces, applied ``COP_MARGIN`` inside the
+  corners (a centre-of-pressure margin).
 * hands: a single point contact 0.10 m ahead of the wrist-yaw joint (palm of the rubber hand),
   i.e. the hand patch is modelled as a point with a linearised friction cone (no contact torque).
 Collision geometry (simplification named): robot links are approximated by spheres placed along the
@@ -45,6 +46,14 @@ GRAVITY = np.array([0.0, 0.0, -9.81])
 SOLE_CORNERS = np.array([[-0.05, 0.025, -0.035], [-0.05, -0.025, -0.035],
                          [0.12, 0.03, -0.035], [0.12, -0.03, -0.035]])
 SOLE_CENTER = SOLE_CORNERS.mean(axis=0)
+#: How far inside the sole edges (along the foot, across it) the TO applies its corner forces, so a
+#: planned centre of pressure never sits on the physical edge.  Why: S1 planned its weight on the
+#: toe edge of a foot about to carry the robot alone; under physics the heel lifted, the foot
+#: rolled and spun on its corner, and the robot fell (docs/execution.md).  Named simplification:
+#: the TO's support polygon is the sole shrunk by this margin.
+COP_MARGIN = np.array([0.02, 0.01])
+SOLE_FORCE_POINTS = SOLE_CORNERS - np.concatenate(
+    [np.sign(SOLE_CORNERS[:, :2] - SOLE_CENTER[:2]) * COP_MARGIN, np.zeros((4, 1))], axis=1)
 HAND_POINT = {"left_hand": np.array([0.10, 0.0, 0.0]), "right_hand": np.array([0.10, 0.0, 0.0])}
 LIMB_JOINT = {"left_foot": "left_ankle_roll_joint", "right_foot": "right_ankle_roll_joint",
               "left_hand": "left_wrist_yaw_joint", "right_hand": "right_wrist_yaw_joint"}

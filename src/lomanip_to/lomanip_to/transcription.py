@@ -44,7 +44,7 @@ import casadi as ca
 import numpy as np
 
 from .layout import Layout, sx_split
-from .model import FEET, GRAVITY, HANDS, SOLE_CORNERS, G1Model, rpy_rate_matrix, rpy_to_rot, rot_z
+from .model import FEET, GRAVITY, HANDS, SOLE_FORCE_POINTS, G1Model, rpy_rate_matrix, rpy_to_rot, rot_z
 
 G = 9.81
 #: half size (m) of the hand contact patch (the G1 hand's palm pressed on a face) and the torsional
@@ -214,7 +214,7 @@ class Window:
         for f in FEET:
             u = ca.reshape(wa[f"u_{f}"], 3, 4)
             jid = m.limb_joint[f]
-            pts = [tree["p"][jid] + tree["R"][jid] @ SOLE_CORNERS[i] for i in range(4)]
+            pts = [tree["p"][jid] + tree["R"][jid] @ SOLE_FORCE_POINTS[i] for i in range(4)]
             feet_pts[f] = pts
             for i in range(4):
                 forces.append((pts[i], u[:, i]))
