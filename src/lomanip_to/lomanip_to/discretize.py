@@ -68,8 +68,10 @@ def self_pairs(model: G1Model) -> tuple:
     idx = {n: i for i, n in enumerate(names)}
     pairs = []
     for s in ("left", "right"):
-        for other in ("pelvis", "torso_0", f"{s}_thigh_0", f"{s}_thigh_1"):
-            pairs.append((idx[f"{s}_hand"], idx[other]))
+        pairs.append((idx[f"{s}_hand"], idx["torso_0"]))
+        for arm in (f"{s}_hand", f"{s}_hand_tip", f"{s}_wrist"):
+            for other in ("pelvis", f"{s}_hip_pitch", f"{s}_hip_roll", f"{s}_thigh_0", f"{s}_thigh_1"):
+                pairs.append((idx[arm], idx[other]))
     for a in ("left_shin_0", "left_shin_1", "left_thigh_1"):
         for b in ("right_shin_0", "right_shin_1", "right_thigh_1"):
             pairs.append((idx[a], idx[b]))

@@ -283,6 +283,16 @@ class G1Model:
             # into the table top in execution
             out.append(CollisionSphere(f"{s}_hand_tip", jid(f"{s}_wrist_yaw_joint"),
                                        np.array([0.135, 0.0, 0.0]), 0.04, f"{s}_hand"))
+            # wrist and hip links (centres and radii from the MJCF collision meshes' bounding
+            # boxes): S1's plan had a hanging wrist 5 cm inside the hip links on MuJoCo's meshes,
+            # which physics then pushed apart (docs/execution.md)
+            out.append(CollisionSphere(f"{s}_wrist", jid(f"{s}_wrist_pitch_joint"),
+                                       np.array([0.023, 0.0, 0.0]), 0.035, f"{s}_forearm"))
+            side = 1.0 if s == "left" else -1.0
+            out.append(CollisionSphere(f"{s}_hip_pitch", jid(f"{s}_hip_pitch_joint"),
+                                       np.array([0.0, side * 0.049, -0.021]), 0.045, f"{s}_thigh"))
+            out.append(CollisionSphere(f"{s}_hip_roll", jid(f"{s}_hip_roll_joint"),
+                                       np.array([0.027, 0.0, -0.039]), 0.055, f"{s}_thigh"))
         return out
 
     # ---------------------------------------------------------------- symbolic kinematics
