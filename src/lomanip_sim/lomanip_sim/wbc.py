@@ -59,9 +59,11 @@ class WbcGains:
     contact_kd: float = 20.0  # damping of a contact foot's drift velocity
     hand_kp: float = 400.0  # stiff near contacts: a lagging hand catches on the table edge (case_lift_box)
     hand_kd: float = 40.0
-    free_hand_kp: float = 150.0  # away from contacts the hands follow the plan softly (balance first)
-    free_hand_kd: float = 25.0
-    w_free_hand: float = 30.0
+    # away from contacts the hands track as stiffly as near them: with soft free hands (kp 150,
+    # weight 30) S1's arms lagged 7-16 cm in the first steps and the pelvis 5-8 cm with them
+    free_hand_kp: float = 400.0
+    free_hand_kd: float = 40.0
+    w_free_hand: float = 300.0
     w_free_hand_ori: float = 2.0
     hand_stiff_window: float = 0.6  # s before a hand contact starts (and after it ends) the stiff gains apply
     posture_kp: float = 100.0
@@ -69,7 +71,7 @@ class WbcGains:
     w_contact: float = 1e3
     w_com: float = 100.0
     w_base_ori: float = 50.0
-    w_base_pos: float = 5.0
+    w_base_pos: float = 50.0  # 5 let the pelvis drift 5-8 cm sideways over S1's first two steps
     w_swing: float = 200.0
     w_hand: float = 300.0
     w_hand_ori: float = 10.0
