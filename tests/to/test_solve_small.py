@@ -55,6 +55,17 @@ def test_one_step(g1):
     swing = [k for k, o in enumerate(res.contact_objects_knots["left_foot"]) if not o]
     assert swing and np.allclose(res.forces_knots["left_foot"][swing], 0.0)
     assert res.points_knots["left_foot"][swing, 2].max() > 0.02
+    # the lift-off knot is still planted (its last force acts until then), and so is the dense grid
+    # up to it: no loaded foot sliding into the swing
+    lift = swing[0]
+    assert np.linalg.norm(lf[lift] - lf[lift - 1]) < 1e-3
+    dense = [k for k in range(len(res.t)) if res.t_knots[lift - 1] <= res.t[k] <= res.t_knots[lift]]
+    x = np.hstack([res.base_position, np.zeros((len(res.t), 3)), res.joint_positions])
+    from lomanip_to.model import quat_xyzw_to_rot, rot_to_rpy
+
+    x[:, 3:6] = [rot_to_rpy(quat_xyzw_to_rot(q)) for q in res.base_quat_xyzw]
+    feet = np.array([g1.numeric(x[k])["limbs"]["left_foot"][0] for k in dense])
+    assert np.abs(feet - lf[lift - 1]).max() < 3e-3
 
 
 def test_lift_light_box(g1):

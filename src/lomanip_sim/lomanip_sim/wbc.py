@@ -56,6 +56,7 @@ class WbcGains:
     base_kd: float = 20.0
     foot_kp: float = 400.0
     foot_kd: float = 40.0
+    swing_blend_time: float = 0.15  # s: a swing foot's target blends from where it lifted off into the plan
     contact_kd: float = 20.0  # damping of a contact foot's drift velocity
     hand_kp: float = 400.0  # stiff near contacts: a lagging hand catches on the table edge (case_lift_box)
     hand_kd: float = 40.0
@@ -170,6 +171,7 @@ class WholeBodyController:
         self.last_forces: dict[str, np.ndarray] = {}
         self._last_tau = np.zeros(NJ)
         self._engaged: dict = {}
+        self._swing_start: dict = {}
 
     # ---------------------------------------------------------------------------- references
     def _precompute_refs(self) -> _Refs:
@@ -299,6 +301,7 @@ class WholeBodyController:
         self.t0 = float(data.time)
         self.status = WbcStatus()
         self._engaged.clear()
+        self._swing_start.clear()
 
     def trajectory_time(self, data: mujoco.MjData) -> float:
         return float(data.time) - self.t0
@@ -355,8 +358,20 @@ class WholeBodyController:
                         cj.append(J[:3] - _skew(r) @ J[3:])
                     corner_J[limb] = cj
                 else:
-                    e = np.concatenate([lerp(R_.site_p[limb]) - p, _rot_error(R_.site_R[limb][i if s < 0.5 else i + 1], Rm)])
-                    b = dlerp(R_.site_a[limb]) + g.foot_kp * e + g.foot_kd * (dlerp(R_.site_v[limb]) - vel) - jdv
+                    p_ref, v_ref, a_ref = lerp(R_.site_p[limb]), dlerp(R_.site_v[limb]), dlerp(R_.site_a[limb])
+                    start = self._swing_start.get(limb)
+                    if start is None or start[0] is not phase:  # lift-off: remember where the foot left
+                        start = self._swing_start[limb] = (phase, p.copy(), t)
+                    u = (t - start[2]) / g.swing_blend_time if g.swing_blend_time > 0 else 1.0
+                    if u < 1.0:  # blend from the actual lift-off point into the plan (no kick)
+                        w = u * u * (3 - 2 * u)
+                        wd = 6 * u * (1 - u) / g.swing_blend_time
+                        p_ref = start[1] + w * (p_ref - start[1])
+                        v_ref = v_ref.copy()
+                        v_ref[:3] = w * v_ref[:3] + wd * (lerp(R_.site_p[limb]) - start[1])
+                        a_ref = w * a_ref
+                    e = np.concatenate([p_ref - p, _rot_error(R_.site_R[limb][i if s < 0.5 else i + 1], Rm)])
+                    b = a_ref + g.foot_kp * e + g.foot_kd * (v_ref - vel) - jdv
                     task(J, b, g.w_swing)
             else:
                 e = lerp(R_.site_p[limb]) - p

@@ -136,7 +136,8 @@ class TOResult:
     # ------------------------------------------------------------------------------------------
     def densify(self, rate: float = 100.0) -> "TOResult":
         """Reconstruct a dense grid: C1 cubic Hermite through the knots for positions (slopes =
-        mean of adjacent secant slopes), its derivative for velocities, zero-order hold on the knot
+        mean of adjacent secant slopes, one-sided at a foot's lift-off and touchdown knots), its
+        derivative for velocities, zero-order hold on the knot
         interval for contact wrenches (the transcription applies forces of knot k on [t_k, t_k+1))."""
         tk = self.t_knots
         n = int(np.floor((tk[-1] - tk[0]) * rate + 1e-9)) + 1
@@ -144,15 +145,16 @@ class TOResult:
         if t[-1] < tk[-1] - 1e-9:
             t = np.append(t, tk[-1])
         self.t = t
-        X, Xd = _hermite(tk, self.x_knots, t)
+        sides = _contact_sides(self.contact_objects_knots)
+        X, Xd = _hermite(tk, self.x_knots, t, sides)
         self.base_position = X[:, :3]
         self.base_quat_xyzw = np.array([rot_to_quat_xyzw(rpy_to_rot(r)) for r in X[:, 3:6]])
         self.base_linear_velocity = Xd[:, :3]
         self.base_angular_velocity = np.array([rpy_rate_matrix(r) @ rd for r, rd in zip(X[:, 3:6], Xd[:, 3:6])])
         self.joint_positions = X[:, 6:]
         self.joint_velocities = Xd[:, 6:]
-        self.com, _ = _hermite(tk, self.com_knots, t)
-        H, _ = _hermite(tk, self.h_knots, t)
+        self.com, _ = _hermite(tk, self.com_knots, t, sides)
+        H, _ = _hermite(tk, self.h_knots, t, sides)
         self.linear_momentum, self.angular_momentum = H[:, :3], H[:, 3:]
         idx = np.clip(np.searchsorted(tk, t, side="right") - 1, 0, len(tk) - 1)
         self.forces = {l: v[idx] for l, v in self.forces_knots.items()}
@@ -243,8 +245,33 @@ def _json_default(o):
     return str(o)
 
 
-def _hermite(tk: np.ndarray, Y: np.ndarray, t: np.ndarray):
-    """C1 cubic Hermite interpolation (values and derivatives) of rows Y at knots tk."""
+def _contact_sides(contact_objects_knots: dict, feet=("left_foot", "right_foot")) -> np.ndarray:
+    """Per knot: -1 at a foot's lift-off knot, +1 at its touchdown knot, 0 elsewhere.
+
+    Why: with mean-secant slopes the interpolant of a knot where a foot lifts off already carries the
+    swing velocity into the interval before it, so the dense plan slid a loaded foot (S1: 0.3 m/s
+    sideways while in double support) and started its swing with a kick.  Taking the secant of the
+    planted interval keeps the foot still over that interval and starts (ends) the swing at rest.
+    """
+    K = len(next(iter(contact_objects_knots.values()))) if contact_objects_knots else 0
+    sides = np.zeros(K, int)
+    for f in feet:
+        c = contact_objects_knots.get(f)
+        if c is None:
+            continue
+        for k in range(1, K - 1):
+            if c[k - 1] and not c[k]:  # last force at k-1 acts until k: planted over [k-1, k]
+                sides[k] = -1
+            elif not c[k] and c[k + 1] and sides[k + 1] == 0:  # lands at k+1: planted from k+1
+                sides[k + 1] = 1
+    return sides
+
+
+def _hermite(tk: np.ndarray, Y: np.ndarray, t: np.ndarray, sides: np.ndarray | None = None):
+    """C1 cubic Hermite interpolation (values and derivatives) of rows Y at knots tk.
+
+    The slope at a knot is the mean of the adjacent secants, or with ``sides[k]`` = -1 / +1 the
+    secant of the interval before / after it alone (see :func:`_contact_sides`)."""
     Y = np.asarray(Y, float)
     K = len(tk)
     if K == 1:
@@ -253,6 +280,12 @@ def _hermite(tk: np.ndarray, Y: np.ndarray, t: np.ndarray):
     m = np.zeros_like(Y)
     m[0], m[-1] = sec[0], sec[-1]
     m[1:-1] = 0.5 * (sec[:-1] + sec[1:])
+    if sides is not None:
+        for k in range(1, K - 1):
+            if sides[k] < 0:
+                m[k] = sec[k - 1]
+            elif sides[k] > 0:
+                m[k] = sec[k]
     i = np.clip(np.searchsorted(tk, t, side="right") - 1, 0, K - 2)
     h = (tk[i + 1] - tk[i])[:, None]
     s = ((t - tk[i])[:, None]) / h
