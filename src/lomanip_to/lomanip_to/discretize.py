@@ -80,9 +80,6 @@ def self_pairs(model: G1Model) -> tuple:
     return tuple(pairs)
 
 
-#: horizontal travel (m) and sine of the yaw change of a sole in the first and the last swing interval
-SWING_END_XY = 0.03
-SWING_END_YAW = 0.1
 #: sine of the largest tilt of a swing sole (3 deg: heel/toe at most ~5 mm lower than the sole centre)
 SWING_TILT = 0.05
 #: limb and waist joint torques are held to this fraction of the G1 limits in the TO (quasi-static rows), so
@@ -514,14 +511,6 @@ class ProblemData:
                 # else lift-off: the last contact force acts until t_k+1, so the sole is still
                 # planted there (xyz and yaw); without this the first swing knot could be 15 cm
                 # ahead while the interval before it carried 270 N (S1), which no controller can track
-                if c is None and not last and k > 0:
-                    prev = self.contact(k - 1, f)
-                    if (prev is not None or cn is not None) and not (prev is None and k == 1):
-                        # first interval after lift-off / last before touchdown: the sole rises and
-                        # lands nearly vertically (S1's plan moved it 7 cm sideways in the first
-                        # 0.1 s of a swing, a kick the whole-body controller passed to the stance leg)
-                        d, yw = SWING_END_XY, SWING_END_YAW
-                        rows(f"{f} no slip", k, [-d, -d, -INF, -yw], [d, d, INF, yw])
                 rows(f"{f} friction cone", k, 0 if c is not None else -INF, INF)
             for h in HANDS:
                 ch = self.contact(k, h)
