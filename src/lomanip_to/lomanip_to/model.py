@@ -277,12 +277,12 @@ class G1Model:
             seg(f"{s}_forearm", f"{s}_elbow_joint", f"{s}_wrist_roll_joint", 0.04, 1, f"{s}_forearm",
                 0.6, 0.6)
             out.append(CollisionSphere(f"{s}_hand", jid(f"{s}_wrist_yaw_joint"),
-                                       np.array([0.07, 0.0, 0.0]), 0.05, f"{s}_hand"))
+                                       np.array([0.07, 0.0, 0.0]), 0.04, f"{s}_hand"))
             # the fingers: the rubber hand reaches 0.17 m past the wrist-yaw joint (the sim's hand
             # collision box); without this sphere S2's reach for the box put the hand tips 3-5 cm
             # into the table top in execution
             out.append(CollisionSphere(f"{s}_hand_tip", jid(f"{s}_wrist_yaw_joint"),
-                                       np.array([0.135, 0.0, 0.0]), 0.05, f"{s}_hand"))
+                                       np.array([0.135, 0.0, 0.0]), 0.04, f"{s}_hand"))
             # wrist and hip links (centres and radii from the MJCF collision meshes' bounding
             # boxes): S1's plan had a hanging wrist 5 cm inside the hip links on MuJoCo's meshes,
             # which physics then pushed apart (docs/execution.md)
