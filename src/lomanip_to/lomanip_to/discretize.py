@@ -543,9 +543,6 @@ class ProblemData:
                 on = self._pair_enabled(k, s, oid)
                 rows(f"c{i} collision", k, 0 if (hard and on) else -INF, INF)
                 rows(f"c{i} homotopy surrogate", k, 0 if (homotopy and on) else -INF, INF)
-                if f"c{i} collision at mid-interval" in Gl:  # hand spheres: on while on at both knots
-                    on_both = on and not last and self._pair_enabled(k + 1, s, oid)
-                    rows(f"c{i} collision at mid-interval", k, 0 if (hard and on_both) else -INF, INF)
             for (a, b) in win.st.self_pairs:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
             rows("floor clearance", k, 0, INF)  # smooth, so on in every homotopy stage

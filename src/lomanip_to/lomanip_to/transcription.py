@@ -363,15 +363,6 @@ class Window:
             cost += pp["w_stage"] * pp["w_force"] * 0.1 * ca.sumsqr(wa[f"o{j}_us"])
 
         # ---- collisions: robot spheres vs object primitives
-        # hand spheres are also checked at the interval's midpoint (configuration and object poses
-        # averaged): S2's plan took a hand round the table top's edge between two knots 0.2 s apart
-        mid = [i for i, s_idx in enumerate(st.obj_pairs) if m.spheres[s_idx].group.endswith("_hand")]
-        if mid:
-            spheres_m = m.sphere_centers(m.symbolic_tree(0.5 * (wa["x"] + wb["x"])))
-            objs_m = []
-            for j in range(M):
-                pm_ = 0.5 * (objs_a[j][0] + objs_b[j][0])
-                objs_m.append((pm_, None, rpy_to_rot(0.5 * (objs_a[j][1] + objs_b[j][1]))))
         for i, s_idx in enumerate(st.obj_pairs):
             sph = m.spheres[s_idx]
             c = spheres[s_idx]
@@ -395,16 +386,6 @@ class Window:
             add(f"c{i} homotopy surrogate", Fs - 1 + s)
             cost += pp["w_stage"] * wpen * ca.fmin(d, 0) ** 2
             cost += pp["w_stage"] * whom * (pp["w_slack"] * s ** 2 + ca.fmax(1 - Fs, 0) ** 2)
-            if i in mid:
-                Rw_m = sel[0] * ca.reshape(pose[3:12], 3, 3)
-                pw_m = sel[0] * pose[0:3]
-                for j in range(M):
-                    pj, _, Rj = objs_m[j]
-                    Rw_m = Rw_m + sel[j + 1] * (Rj @ Rloc)
-                    pw_m = pw_m + sel[j + 1] * (pj + Rj @ loc[0:3])
-                d_m = box_sphere_distance(Rw_m.T @ (spheres_m[s_idx] - pw_m), half, sph.radius)
-                add(f"c{i} collision at mid-interval", d_m)
-                cost += pp["w_stage"] * wpen * ca.fmin(d_m, 0) ** 2
         # every collision sphere above the floor (z = 0): the sole rows only keep the sole point
         # up, so a toe-down swing foot put its sphere 10 mm into the floor (push_trolley, t = 0.2 s)
         add("floor clearance", ca.vertcat(*[spheres[s][2] - m.spheres[s].radius for s in range(len(m.spheres))]))
