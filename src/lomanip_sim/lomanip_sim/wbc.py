@@ -85,7 +85,6 @@ class WbcGains:
     f_max: float = 1500.0  # N per point
     hold_recentre_time: float = 1.0  # s: after the plan ends, the CoM moves over the sole centres
     com_margin: float = 0.03  # m: CoM reference kept this far inside the contact soles' bounding box
-    com_clamp_single_support: float = 1.0  # 1: the clamp also applies on one foot (0: double support only)
     hand_offset_ramp: float = 0.3  # s, see WholeBodyController._hand_offsets
     hand_squeeze: float = -0.005  # m: hand target this far inside the surface (negative = into the object)
     hand_clearance: float = 0.02  # m, extra distance from the surface while approaching a contact
@@ -389,8 +388,7 @@ class WholeBodyController:
         com = data.subtree_com[self.pelvis]
         com_ref = lerp(R_.com)
         feet = [lf for lf in FEET if lf in corner_J]
-        clamp = g.com_margin > 0 and (len(feet) > 1 or after_end or g.com_clamp_single_support > 0)
-        box = self._support_box(data, feet) if clamp else None
+        box = self._support_box(data, feet) if g.com_margin > 0 else None
         if box is not None:  # keep the CoM reference a margin inside the support (marginal plans tip over)
             lo, hi, Hh = box
             loc = Hh @ com_ref[:2]
