@@ -103,3 +103,13 @@ def test_failed_solve_is_reported_as_failed(g1):
     assert not res.stats.converged
     assert not res.success
     assert "did not converge in" in res.stats.status_message()
+
+
+def test_solver_cache_is_bounded(g1, monkeypatch):
+    """A long-running TO node keeps at most MAX_CACHED_SOLVERS solvers (one per active-row set)."""
+    monkeypatch.setattr(solver, "MAX_CACHED_SOLVERS", 1)
+    monkeypatch.setattr(solver, "_SOLVERS", {})
+    monkeypatch.setattr(solver, "_CALLBACKS", {})
+    res = solver.solve(load_problem("case_stand", model=g1), g1)
+    assert res.success
+    assert len(solver._SOLVERS) <= 1

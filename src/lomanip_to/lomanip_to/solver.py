@@ -33,6 +33,9 @@ _NLPS: dict = {}
 _SOLVERS: dict = {}
 _MODEL: list = []
 _CALLBACKS: dict = {}
+#: solvers kept per process (one per structure, options and active-row set); the oldest is dropped
+#: beyond this, so a long-running TO node does not grow without bound
+MAX_CACHED_SOLVERS = 48
 #: iteration cap of the homotopy guide stage (ellipsoid surrogate); the final stage is not capped.
 #: The guide should normally converge (to ipopt's acceptable level): only then does the final stage
 #: get a primal-dual warm start, which then takes a few iterations (S1 subtask 0: guide 127 + final
@@ -129,6 +132,9 @@ def get_solver(wd, structure, K: int, ipopt_opts: dict, threads: int = 2, tag: s
     rkey = None if rows is None else hashlib.sha1(np.asarray(rows, np.int64).tobytes()).hexdigest()
     skey = (tag, hessian, (structure, K), tuple(sorted(ipopt_opts.items())), rkey)
     if skey not in _SOLVERS:
+        while len(_SOLVERS) >= MAX_CACHED_SOLVERS:
+            old = _SOLVERS.pop(next(iter(_SOLVERS)))
+            _CALLBACKS.pop(id(old), None)
         _SOLVERS[skey] = _make_solver(nlp, ipopt_opts, hessian, rows)
     return nlp, _SOLVERS[skey]
 
