@@ -357,7 +357,8 @@ class WholeBodyController:
                         cj.append(J[:3] - _skew(r) @ J[3:])
                     corner_J[limb] = cj
                 else:
-                    p_ref, v_ref, a_ref = lerp(R_.site_p[limb]), dlerp(R_.site_v[limb]), dlerp(R_.site_a[limb])
+                    p_plan, v_ref, a_ref = lerp(R_.site_p[limb]), dlerp(R_.site_v[limb]), dlerp(R_.site_a[limb])
+                    p_ref = p_plan
                     start = self._swing_start.get(limb)
                     if start is None or start[0] is not phase:  # lift-off: remember where the foot left
                         start = self._swing_start[limb] = (phase, p.copy(), t)
@@ -365,9 +366,9 @@ class WholeBodyController:
                     if u < 1.0:  # blend from the actual lift-off point into the plan (no kick)
                         w = u * u * (3 - 2 * u)
                         wd = 6 * u * (1 - u) / g.swing_blend_time
-                        p_ref = start[1] + w * (p_ref - start[1])
+                        p_ref = start[1] + w * (p_plan - start[1])
                         v_ref = v_ref.copy()
-                        v_ref[:3] = w * v_ref[:3] + wd * (lerp(R_.site_p[limb]) - start[1])
+                        v_ref[:3] = w * v_ref[:3] + wd * (p_plan - start[1])
                         a_ref = w * a_ref
                     e = np.concatenate([p_ref - p, _rot_error(R_.site_R[limb][i if s < 0.5 else i + 1], Rm)])
                     b = a_ref + g.foot_kp * e + g.foot_kd * (v_ref - vel) - jdv
