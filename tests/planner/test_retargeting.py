@@ -94,3 +94,22 @@ def test_bad_input(retargeter, target, message):
     with pytest.raises(RetargetingError) as err:
         retargeter.solve(target)
     assert err.value.code == INVALID_REQUEST and message in str(err.value)
+
+
+#: S1's "pick up the box" as perception transferred it: hands on the box sides 15 cm above the floor,
+#: 40 cm apart; the demonstrator's feet 73 cm from the box, out of the G1's reach (feet must slide)
+_LOW_PICK = (LimbTarget("left_hand", np.array([0.5, 0.022, 0.143]), np.array([-1.0, 0.0, 0.0]), "box"),
+             LimbTarget("right_hand", np.array([0.9, 0.009, 0.158]), np.array([1.0, 0.0, 0.0]), "box"),
+             LimbTarget("left_foot", np.array([0.579, -0.732, 0.0])),
+             LimbTarget("right_foot", np.array([0.834, -0.735, 0.0])))
+
+
+def test_low_pick_with_sliding_feet_is_reached_whatever_the_target_order(retargeter):
+    facing_y = frames.yaw_to_quat(np.pi / 2)
+    results = [retargeter.solve(RetargetTarget(order, facing_y, floor_feet_slide=True))
+               for order in (_LOW_PICK, _LOW_PICK[::-1])]
+    for res in results:
+        assert max(res.residuals.values()) <= 0.01
+        assert res.within_joint_limits and res.min_self_distance > 0.0
+    # the IK's outcome must not depend on the order the caller lists the limbs in
+    np.testing.assert_allclose(results[0].qpos, results[1].qpos, atol=1e-9)

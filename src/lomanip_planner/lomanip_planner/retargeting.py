@@ -51,6 +51,18 @@ _SELF_COLLISION_BODIES = (
 #: horizontal distance from the pelvis to where both hands hold an object in front of the G1 (m)
 HAND_REACH = 0.32
 
+#: crouched starts for hands low in front (pelvis height m, waist pitch, shoulder pitch, shoulder
+#: roll outward, rad). Differential IK from a standing start must fold the legs, bend the waist and
+#: bring the arms outside the knees at once, and with the self-collision limits it often stops in a
+#: local minimum (S1's "pick up the box": hands at 15 cm, 40 cm apart). Seeds measured on that case.
+_CROUCH_SEEDS = {
+    "crouch": (0.35, 0.6, -0.8, 0.0),
+    "crouch_wide": (0.5, 0.3, -0.8, 0.35),
+}
+#: (seed, pelvis-to-hands distance m) tried, in order, in front of the hands when feet may slide
+_FRONT_SEEDS = (("crouch", 0.35), ("crouch", 0.25), ("crouch_wide", 0.35), ("squat", HAND_REACH),
+                ("stand", HAND_REACH))
+
 
 class RetargetingError(ValueError):
     """The targets cannot be met by a feasible G1 configuration; ``code`` is an ErrorCode value."""
@@ -186,10 +198,10 @@ class Retargeter:
         starts += [self._seed(name, feet, base_R) for name in ("stand", "squat", "reach_up")]
         hands = [t.position for t in targets.values() if t.limb in HANDS]
         if self._sliding and hands:   # feet may move: also start in front of the hands' targets
-            reach = np.mean(hands, axis=0) - HAND_REACH * base_R[:, 0]
-            for name in ("squat", "stand"):
+            hands_mid = np.mean(hands, axis=0)
+            for name, reach in _FRONT_SEEDS:
                 q = self._seed(name, feet, base_R)
-                q[0:2] = reach[:2]
+                q[0:2] = (hands_mid - reach * base_R[:, 0])[:2]
                 starts.append(q)
         best: tuple[tuple[bool, float], np.ndarray] | None = None
         iterations_total = 0
@@ -207,7 +219,15 @@ class Retargeter:
 
     def _seed(self, name: str, feet: list[LimbTarget], base_R: np.ndarray) -> np.ndarray:
         q = self.stand.copy()
-        if name == "squat":
+        if name in _CROUCH_SEEDS:
+            height, waist, shoulder_pitch, shoulder_roll = _CROUCH_SEEDS[name]
+            for side, sign in (("left", 1.0), ("right", -1.0)):
+                for joint, v in (("hip_pitch", -0.9), ("knee", 1.8), ("ankle_pitch", -0.8),
+                                 ("shoulder_pitch", shoulder_pitch), ("shoulder_roll", sign * shoulder_roll),
+                                 ("elbow", 0.3)):
+                    q[7 + G1_JOINT_NAMES.index(f"{side}_{joint}_joint")] = v
+            q[7 + G1_JOINT_NAMES.index("waist_pitch_joint")] = waist
+        elif name == "squat":
             for side in ("left", "right"):
                 for joint, v in (("hip_pitch", -0.9), ("knee", 1.8), ("ankle_pitch", -0.8), ("shoulder_pitch", -0.6)):
                     q[7 + G1_JOINT_NAMES.index(f"{side}_{joint}_joint")] = v
@@ -215,7 +235,8 @@ class Retargeter:
         elif name == "reach_up":
             for side in ("left", "right"):
                 q[7 + G1_JOINT_NAMES.index(f"{side}_shoulder_pitch_joint")] = -2.2
-        height = {"stand": self.stand[2], "squat": 0.45, "reach_up": self.stand[2]}[name]
+        height = _CROUCH_SEEDS[name][0] if name in _CROUCH_SEEDS else \
+            {"stand": self.stand[2], "squat": 0.45, "reach_up": self.stand[2]}[name]
         if feet:   # start above the feet, facing the right way
             mid = np.mean([t.position for t in feet], axis=0)
             q[0:3] = [mid[0], mid[1], mid[2] + height]
@@ -280,6 +301,8 @@ class Retargeter:
             if np.linalg.norm(normal) < 1e-9:
                 raise RetargetingError(INVALID_REQUEST, f"{t.limb} surface normal is zero")
             targets[t.limb] = LimbTarget(t.limb, pos, normal / np.linalg.norm(normal), t.object_id)
+        # the IK's tasks follow this order: keep it fixed so the same targets give the same keyframe
+        targets = {limb: targets[limb] for limb in LIMBS if limb in targets}
         if not any(limb in targets for limb in FEET):
             raise RetargetingError(INVALID_REQUEST, "a keyframe needs at least one foot in contact")
         if target.base_orientation_wxyz is not None:
