@@ -5,6 +5,7 @@ import pytest
 from to_cases import simulation, solved, trajectory
 
 from lomanip_sim.execution import Execution, ExecutionOptions, execution_error
+from lomanip_sim.simulator import FallCriteria
 from lomanip_sim.standing import StandingController
 from lomanip_sim.trajectory import EXECUTION_FAILED, INVALID_TRAJECTORY, TrajectoryError, make_trajectory
 
@@ -91,3 +92,14 @@ def _names():
     from lomanip_sim.robot_model import G1_JOINT_NAMES
 
     return G1_JOINT_NAMES
+
+
+def test_fall_thresholds_give_way_to_the_plan():
+    """A plan that squats (S1: pelvis 0.30 m, torso 1.35 rad) is no fall; 15 cm below the plan is."""
+    sim, tr = simulation("case_stand")
+    ex = Execution(sim, tr)
+    assert not ex._fallen(sim.data)
+    sim.fall_criteria = FallCriteria(min_pelvis_height=0.9, max_tilt=0.0)  # the standing robot is past both...
+    assert not ex._fallen(sim.data)  # ...but so is the plan (0.79 m, upright): 0.64 m and 0.4 rad count
+    ex._plan_pose[:, 0] += 0.3  # a plan 30 cm higher than the robot
+    assert ex._fallen(sim.data)

@@ -88,6 +88,31 @@ def test_references_and_helpers():
     np.testing.assert_allclose(_rot_error(Rz, R), [0, 0, np.sin(0.1)], atol=1e-12)
 
 
+def test_foot_friction_cone_is_inside_mujocos():
+    """The QP's sole friction cone lies inside the one MuJoCo applies to the sole spheres.
+
+    MuJoCo: condim 3, pyramidal cone, friction of the higher-priority geom (the G1's sole spheres):
+    per point |f_t1| + |f_t2| <= mu_sim f_n along its contact frame's tangents (world x, y on a
+    level floor). A QP that asks for more makes the stance sole slide or spin (S1, second step).
+    """
+    sim, tr = simulation("case_stand")
+    wbc = WholeBodyController(sim.world, tr)
+    m = sim.model
+    floor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "floor")
+    for body in wbc.foot_body.values():
+        for gid in np.nonzero((m.geom_bodyid == body) & (m.geom_contype > 0))[0]:
+            a, b = (gid, floor) if m.geom_priority[gid] >= m.geom_priority[floor] else (floor, gid)
+            mu_sim = m.geom_friction[a][0] if m.geom_priority[a] > m.geom_priority[b] else max(m.geom_friction[a][0], m.geom_friction[b][0])
+            assert m.geom_condim[gid] == 3 and wbc.g.mu_foot <= mu_sim
+    assert m.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
+    rows = wbc._pyramid(np.array([0.0, 0.0, 1.0]), wbc.g.mu_foot)
+    mu = wbc.g.mu_foot
+    inside = [np.array([mu, 0, 1]), np.array([0, -mu, 1]), np.array([mu / 2, mu / 2, 1]) * 0.999]
+    outside = [np.array([0.8 * mu, 0.8 * mu, 1]), np.array([-1.01 * mu, 0, 1])]
+    assert all(np.all(rows[:4] @ f <= 1e-12) for f in inside)
+    assert all(np.any(rows[:4] @ f > 0) for f in outside)
+
+
 @pytest.mark.slow
 def test_lift_box_friction_grasp():
     """case_lift_box: the box (1 kg) leaves the table held only by hand friction (no weld)."""

@@ -88,6 +88,7 @@ class Execution:
         m = sim.model
         self._torso = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, TORSO_BODY)
         self._feet = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) for s in FOOT_SITES.values()]
+        self._plan_pose = self._planned_fall_measures()
         self._log_every = max(1, int(round(1.0 / (self.opt.log_rate * sim.timestep))))
         self._steps = 0
         self._e2_base = self._e2_joint = 0.0
@@ -212,12 +213,35 @@ class Execution:
             else:
                 lg.planned[limb].append(lg.planned[limb][-1] if lg.planned[limb] else np.zeros(3))
 
-    def _fallen(self, data: mujoco.MjData) -> bool:
-        c = self.sim.fall_criteria
-        pz = data.xpos[self.wbc.pelvis][2]
+    def _measures(self, data: mujoco.MjData) -> tuple[float, float, float]:
+        """Pelvis height, pelvis height above the lowest foot site, max pelvis/torso tilt."""
+        pz = float(data.xpos[self.wbc.pelvis][2])
         feet_z = min(data.site_xpos[s][2] for s in self._feet)
         tilt = max(frames.tilt_angle(data.xquat[self.wbc.pelvis]), frames.tilt_angle(data.xquat[self._torso]))
-        return bool(pz < c.min_pelvis_height or pz - feet_z < c.min_pelvis_above_feet or tilt > c.max_tilt)
+        return pz, pz - feet_z, float(tilt)
+
+    def _planned_fall_measures(self) -> np.ndarray:
+        """(N,3) the fall measures of the plan's own configurations (so a planned squat is no fall)."""
+        m, tr, w = self.sim.model, self.traj, self.wbc
+        d = mujoco.MjData(m)
+        d.qpos[:] = self.sim.data.qpos
+        out = np.zeros((tr.n, 3))
+        for i in range(tr.n):
+            d.qpos[w.bq : w.bq + tr.qpos(i).size] = tr.qpos(i)
+            mujoco.mj_kinematics(m, d)
+            out[i] = self._measures(d)
+        return out
+
+    def _fallen(self, data: mujoco.MjData) -> bool:
+        """Fixed fall thresholds, relaxed to the plan's own pose minus a margin where the plan goes past them."""
+        c = self.sim.fall_criteria
+        pz, above, tilt = self._measures(data)
+        i, _s = self.traj.index_at(min(self.time, self.traj.duration))
+        plan = self._plan_pose[i : i + 2]
+        min_pz = min(c.min_pelvis_height, plan[:, 0].min() - c.plan_height_margin)
+        min_above = min(c.min_pelvis_above_feet, plan[:, 1].min() - c.plan_height_margin)
+        max_tilt = max(c.max_tilt, plan[:, 2].max() + c.plan_tilt_margin)
+        return bool(pz < min_pz or above < min_above or tilt > max_tilt)
 
 
 def execution_error(exc: Exception) -> TrajectoryError:

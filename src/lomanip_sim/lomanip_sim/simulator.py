@@ -88,6 +88,12 @@ class FallCriteria:
     min_pelvis_height: float = 0.35  # m above the world floor
     min_pelvis_above_feet: float = 0.40  # m, pelvis height above the lowest foot site
     max_tilt: float = 0.8  # rad, pelvis or torso z axis vs vertical
+    # While a plan executes (Execution), the thresholds give way where the plan itself goes below or
+    # beyond them (S1 squats to pelvis 0.30 m and bends the torso 1.35 rad): a fall is then the
+    # pelvis this far below the planned height (absolute and above the feet) or a tilt this far past
+    # the planned one. Has no effect on has_fallen() (no plan there).
+    plan_height_margin: float = 0.15  # m
+    plan_tilt_margin: float = 0.4  # rad
 
 
 class Simulation:

@@ -81,11 +81,22 @@ class WbcGains:
     reg_qdd: float = 1e-5
     reg_force: float = 1e-5
     reg_tau: float = 1e-6
-    mu_foot: float = 0.7  # friction coefficients the QP assumes (below the sim's, for margin)
+    # Sole friction the QP assumes. The G1's sole contacts in MuJoCo are four 5 mm spheres per foot
+    # with friction 0.6 and priority 1 (so 0.6 holds against any floor), condim 3, pyramidal cone:
+    # per sphere |f_t1| + |f_t2| <= 0.6 f_n (a "diamond"). The QP used a square pyramid with
+    # mu 0.7 (up to 0.99 f_n diagonally), so it could ask a stance sole for more shear and yaw
+    # moment than the floor gives: in S1 the stance sole spun 0.4 rad at the second step and the
+    # other one slid 10-16 cm in the squat. Now the same diamond, with 0.5 for margin.
+    mu_foot: float = 0.5
+    diamond_cone: bool = True  # False: the old square pyramid |f_t1|, |f_t2| <= mu f_n
     f_max: float = 1500.0  # N per point
     hold_recentre_time: float = 1.0  # s: after the plan ends, the CoM moves over the sole centres
     com_margin: float = 0.03  # m: CoM reference kept this far inside the contact soles' bounding box
-    hand_offset_ramp: float = 0.3  # s, see WholeBodyController._hand_offsets
+    # s, see WholeBodyController._hand_offsets. Was 0.3: S1's plan brings the right hand (a point in
+    # the TO) 2-4 cm over the box's front corner 0.6 s before the grasp, the 13 x 7 x 11 cm hand box
+    # caught on that edge and the arm pushed the robot backwards (fell at 2.6 s)
+    hand_offset_ramp: float = 0.8
+    hand_release_ramp: float = 0.3  # s over which the offset goes after a hand contact ends
     hand_squeeze: float = -0.005  # m: hand target this far inside the surface (negative = into the object)
     hand_clearance: float = 0.02  # m, extra distance from the surface while approaching a contact
     hand_engage_error: float = 0.06  # m: planned hand force is applied once the hand got this close
@@ -215,7 +226,8 @@ class WholeBodyController:
 
         Why: the TO models a hand as a point on the object's surface, the sim's hand is a collision
         box around that point, so tracking the point would push the box 3-5 cm into the object.
-        The shift is ramped in over ``hand_offset_ramp`` s before each contact and out after it.
+        The shift is ramped in over ``hand_offset_ramp`` s before each contact (so the approaching
+        hand box stays outside the object's face) and out over ``hand_release_ramp`` s after it.
         """
         tr, g = self.traj, self.g
         half = np.asarray(HAND_COLLISION_HALF_SIZE, float)
@@ -225,7 +237,8 @@ class WholeBodyController:
             if c is None:
                 continue
             n = np.asarray(c.normal, float) / max(np.linalg.norm(c.normal), 1e-9)
-            w = np.clip(1.0 - np.maximum(ph.start - tr.t, tr.t - ph.end) / g.hand_offset_ramp, 0.0, 1.0)
+            w = np.clip(np.minimum(1.0 - (ph.start - tr.t) / g.hand_offset_ramp, 1.0 - (tr.t - ph.end) / g.hand_release_ramp),
+                        0.0, 1.0)  # fmt: skip
             # approach from outside: extra clearance until shortly before contact, gone just after it
             clear = g.hand_clearance * np.clip((ph.start + 0.1 - tr.t) / 0.2, 0.0, 1.0)
             for i in np.nonzero(w > 0)[0]:
@@ -244,7 +257,10 @@ class WholeBodyController:
             t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
             t1 /= np.linalg.norm(t1)
             t2 = np.cross(n, t1)
-            rows = np.array([t1 - mu * n, -t1 - mu * n, t2 - mu * n, -t2 - mu * n, n])
+            if self.g.diamond_cone:  # MuJoCo's pyramidal cone for condim 3: edges n +- mu t1, n +- mu t2
+                rows = np.array([t1 + t2 - mu * n, t1 - t2 - mu * n, -t1 + t2 - mu * n, -t1 - t2 - mu * n, n])
+            else:
+                rows = np.array([t1 - mu * n, -t1 - mu * n, t2 - mu * n, -t2 - mu * n, n])
             self._pyramids[key] = rows
         return rows
 
