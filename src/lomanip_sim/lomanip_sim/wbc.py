@@ -7,7 +7,7 @@ over the G1's floating-base dynamics taken from the MuJoCo model itself:
     variables  x = [tau (29), qdd (35), f (3 per contact point)]
     minimise   sum_k w_k |A_k qdd - b_k|^2 + w_f |f_limb - f_plan|^2 + small regularisation
     subject to M qdd + h = S^T tau + J_c^T f          (35 rows: mass matrix qM, bias qfrc_bias - passive)
-               |f_t| <= mu f_n per tangent, 0 <= f_n <= f_max   (linearised friction pyramids)
+               |f_t1| + |f_t2| <= mu f_n, 0 <= f_n <= f_max      (MuJoCo's own pyramidal cone, mu 0.5 < 0.6)
                |tau| <= G1 rev 1.0 torque limits
 
 Contacts follow the plan's contact schedule: a foot in contact is 4 sole-corner point forces with
@@ -76,6 +76,10 @@ class WbcGains:
     w_swing: float = 200.0
     w_hand: float = 300.0
     w_hand_ori: float = 10.0
+    # while a hand is in contact its orientation task is nearly off: the object's face sets the palm's
+    # orientation, and tracking the planned one stiffly (10) twisted S1's box in the grasp whenever
+    # its pose differed from the plan (box 0.3 rad, wrists 1.2 rad off, fell at 3.4 s, at the lift)
+    w_hand_ori_contact: float = 0.1
     w_posture: float = 1.0
     w_force: float = 1e-3  # per N^2, towards the planned contact force
     reg_qdd: float = 1e-5
@@ -397,7 +401,10 @@ class WholeBodyController:
                 task(J[:3], b, wh)
                 eo = _rot_error(R_.site_R[limb][i if s < 0.5 else i + 1], Rm)
                 bo = kp * eo + kd * (dlerp(R_.site_v[limb])[3:] - vel[3:]) - jdv[3:]
-                task(J[3:], bo, g.w_hand_ori if stiff else g.w_free_hand_ori)
+                w_ori = g.w_hand_ori if stiff else g.w_free_hand_ori
+                if limb in contacts:
+                    w_ori = g.w_hand_ori_contact
+                task(J[3:], bo, w_ori)
 
         # --- CoM
         mujoco.mj_jacSubtreeCom(m, data, self._jp, self.pelvis)
