@@ -9,7 +9,9 @@
                                         max constraint violation of the iterate, solve_time = elapsed
                                         s, status_message = stage (e.g. "subtask 1 (3.0-11.4 s) final")
 
-Invalid input is answered with its error code before any solve. Only a solve that converged AND
+Invalid input is answered with its error code before any solve. The solve runs in a worker process
+(parameter ``isolate_solver``, default true) that is killed when it overruns the problem's time
+limit by solver_process.hard_deadline: the request then gets TIMEOUT, never a hang. Only a solve that converged AND
 passed the physical-consistency checks is returned as a trajectory and published; a failed solve
 returns TO_NOT_CONVERGED with the reason and the solver statistics, and an empty trajectory. One
 solve at a time: a request while another runs is answered BUSY.
@@ -44,6 +46,9 @@ class TONode(Node):
     def __init__(self) -> None:
         super().__init__("lomanip_to")
         self.threads = int(self.declare_parameter("threads", 2).value)
+        # solve in a worker process that is killed if an ipopt iteration overruns the time limit
+        # (solver_process.hard_deadline); False: in this process, no hard deadline
+        self.isolate_solver = bool(self.declare_parameter("isolate_solver", True).value)
         from .solver import default_model
 
         t0 = time.perf_counter()
@@ -52,6 +57,11 @@ class TONode(Node):
         self.get_logger().info(f"G1 model loaded in {time.perf_counter() - t0:.1f} s "
                                f"({len(self.joint_names)} joints)")
         self._busy = threading.Lock()
+        self.worker = None
+        if self.isolate_solver:
+            from .solver_process import SolverProcess
+
+            self.worker = SolverProcess(threads=self.threads)
         self.pub_traj = self.create_publisher(WholeBodyTrajectory, "/lomanip/trajectory", LATCHED)
         self.pub_joint = self.create_publisher(JointTrajectory, "/lomanip/trajectory/joint_trajectory", LATCHED)
         self.pub_base = self.create_publisher(MultiDOFJointTrajectory, "/lomanip/trajectory/base_trajectory", LATCHED)
@@ -83,9 +93,13 @@ class TONode(Node):
         log.info(f"optimising {problem.name or 'trajectory'}: {len(problem.keyframes)} keyframes, "
                  f"{len(problem.phases)} phases, {problem.duration:.1f} s")
         try:
-            result = solve(problem, self.model, threads=self.threads, progress=self._progress_sink())
-        except ProblemError as exc:
+            if self.worker is not None:
+                result = self.worker.solve(problem, progress=self._progress_sink())
+            else:
+                result = solve(problem, self.model, threads=self.threads, progress=self._progress_sink())
+        except ProblemError as exc:   # includes solver_process.SolveAborted (TIMEOUT)
             response.error_code = ErrorCode(val=exc.code, message=exc.message)
+            log.error(f"optimisation stopped: {exc.message}")
             return response
         stats = result.stats
         response.trajectory.solver_statistics = conv.statistics_msg(stats)
@@ -144,6 +158,8 @@ def main(argv: list[str] | None = None) -> int:
         pass
     finally:
         if node is not None:
+            if node.worker is not None:
+                node.worker.close()
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
