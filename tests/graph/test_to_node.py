@@ -121,3 +121,33 @@ def test_progress_is_published_during_a_solve(to_node, client):
     assert its[0] >= 1 and its == sorted(its) and its[-1] <= res.trajectory.solver_statistics.iterations
     assert all(not m.converged and m.status_message for m in got)
     assert all(m.solve_time >= 0 and math.isfinite(m.cost) for m in got)
+
+
+def test_cancel_stops_a_running_solve_and_the_node_serves_the_next(to_node, client):
+    """/lomanip/to/cancel (std_srvs/Trigger) kills the solver worker: the request gets CANCELLED."""
+    import rclpy
+    from std_srvs.srv import Trigger
+
+    from lomanip_msgs.msg import ErrorCode, SolverStatistics
+    from lomanip_msgs.srv import OptimizeTrajectory
+
+    cancel = client.create_client(Trigger, "/lomanip/to/cancel")
+    wait_for(cancel.service_is_ready, 30, "/lomanip/to/cancel", spin=_spin(client))
+    idle = cancel.call_async(Trigger.Request())
+    rclpy.spin_until_future_complete(client, idle, timeout_sec=10)
+    assert idle.result().success is False and "no optimisation" in idle.result().message
+
+    got = []
+    sub = client.create_subscription(SolverStatistics, "/lomanip/to/progress", got.append, 50)
+    cli = client.create_client(OptimizeTrajectory, "/lomanip/to/optimize")
+    future = cli.call_async(_request("case_lift_box"))
+    wait_for(lambda: got, 120, "first progress message", spin=_spin(client))
+    stop = cancel.call_async(Trigger.Request())
+    rclpy.spin_until_future_complete(client, stop, timeout_sec=10)
+    assert stop.result().success
+    rclpy.spin_until_future_complete(client, future, timeout_sec=15)
+    client.destroy_subscription(sub)
+    assert future.done(), "the cancelled solve did not answer"
+    assert future.result().error_code.val == ErrorCode.CANCELLED, future.result().error_code.message
+    res = _call(client, _request("case_stand"), to_node)   # a fresh worker solves the next one
+    assert res.error_code.val == ErrorCode.SUCCESS, res.error_code.message

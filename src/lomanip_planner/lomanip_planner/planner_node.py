@@ -31,6 +31,7 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
 from tf2_msgs.msg import TFMessage
 
 from lomanip_msgs.action import Execute, Plan
@@ -85,6 +86,7 @@ class PlannerNode(Node):
         self.cli_perception = self.create_client(ExtractContacts, "/lomanip/perception/extract_contacts",
                                                  callback_group=group)
         self.cli_to = self.create_client(OptimizeTrajectory, "/lomanip/to/optimize", callback_group=group)
+        self.cli_to_cancel = self.create_client(Trigger, "/lomanip/to/cancel", callback_group=group)
         self.cli_execute = ActionClient(self, Execute, "/lomanip/sim/execute", callback_group=group)
         self.create_service(PlanTask, "/lomanip/plan", self._on_plan_service, callback_group=group)
         self._action = ActionServer(self, Plan, "/lomanip/plan", execute_callback=self._on_plan_action,
@@ -157,6 +159,8 @@ class PlannerNode(Node):
         while not done.wait(0.2):
             if cancelled():
                 future.cancel()
+                if stage == "optimisation" and self.cli_to_cancel.service_is_ready():
+                    self.cli_to_cancel.call_async(Trigger.Request())   # stop the TO's worker too
                 raise PlanFailed(ErrorCode.CANCELLED, f"cancelled during {stage}")
             if time.monotonic() > deadline:
                 future.cancel()

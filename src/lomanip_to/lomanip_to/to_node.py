@@ -4,6 +4,8 @@
   /lomanip/trajectory                   lomanip_msgs/WholeBodyTrajectory (reliable, transient local)
   /lomanip/trajectory/joint_trajectory  trajectory_msgs/JointTrajectory (29 G1 joints), same QoS
   /lomanip/trajectory/base_trajectory   trajectory_msgs/MultiDOFJointTrajectory ("floating_base"), same QoS
+  /lomanip/to/cancel                    std_srvs/Trigger: stops the running solve (its request gets
+                                        CANCELLED); only with isolate_solver (the default)
   /lomanip/to/progress                  lomanip_msgs/SolverStatistics, during a solve (<= ~5 Hz):
                                         iterations so far, cost = objective, max_dynamics_violation =
                                         max constraint violation of the iterate, solve_time = elapsed
@@ -27,6 +29,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, MultiDOFJointTrajectory
 
 from lomanip_msgs.msg import ErrorCode, SolverStatistics, WholeBodyTrajectory
@@ -66,8 +69,21 @@ class TONode(Node):
         self.pub_joint = self.create_publisher(JointTrajectory, "/lomanip/trajectory/joint_trajectory", LATCHED)
         self.pub_base = self.create_publisher(MultiDOFJointTrajectory, "/lomanip/trajectory/base_trajectory", LATCHED)
         self.pub_progress = self.create_publisher(SolverStatistics, "/lomanip/to/progress", 10)
+        self._cancel = threading.Event()
         self.create_service(OptimizeTrajectory, "/lomanip/to/optimize", self._on_optimize,
                             callback_group=ReentrantCallbackGroup())
+        self.create_service(Trigger, "/lomanip/to/cancel", self._on_cancel, callback_group=ReentrantCallbackGroup())
+
+    def _on_cancel(self, request, response):
+        if self.worker is None:
+            response.success, response.message = False, "isolate_solver is false: a solve cannot be stopped"
+        elif not self._busy.locked():
+            response.success, response.message = False, "no optimisation is running"
+        else:
+            self._cancel.set()
+            response.success, response.message = True, "stopping the running optimisation"
+            self.get_logger().info("cancel requested")
+        return response
 
     def _on_optimize(self, request, response):
         if not self._busy.acquire(blocking=False):
@@ -94,10 +110,11 @@ class TONode(Node):
                  f"{len(problem.phases)} phases, {problem.duration:.1f} s")
         try:
             if self.worker is not None:
-                result = self.worker.solve(problem, progress=self._progress_sink())
+                self._cancel.clear()
+                result = self.worker.solve(problem, progress=self._progress_sink(), cancel=self._cancel)
             else:
                 result = solve(problem, self.model, threads=self.threads, progress=self._progress_sink())
-        except ProblemError as exc:   # includes solver_process.SolveAborted (TIMEOUT)
+        except ProblemError as exc:   # includes solver_process.SolveAborted (TIMEOUT, CANCELLED)
             response.error_code = ErrorCode(val=exc.code, message=exc.message)
             log.error(f"optimisation stopped: {exc.message}")
             return response
