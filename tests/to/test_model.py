@@ -83,3 +83,19 @@ def test_quasi_static_limb_torques_match_rnea_at_rest(g1):
         assert set(ours) == set(LIMBS) | {"waist"}
         for group, (js, _) in g1.torque_row_joints.items():
             assert np.allclose(ours[group], [tau[6 + j - 2] for j in js], atol=1e-9)
+
+
+def test_shin_spheres_cover_the_shin_from_the_knee_without_gaps(g1):
+    """Crossing knees must show as a self-collision: the spheres overlap along the shin."""
+    from lomanip_to.discretize import self_pairs
+
+    names = [s.name for s in g1.spheres]
+    cs = g1.numeric(np.zeros(35))["spheres"]
+    for side in ("left", "right"):
+        shin = [i for i, n in enumerate(names) if n.startswith(f"{side}_shin_")]
+        assert len(shin) >= 3
+        for a, b in zip(shin, shin[1:]):
+            gap = np.linalg.norm(cs[a] - cs[b])
+            assert gap < 2.0 * g1.spheres[a].radius + 0.025   # at most 2.5 cm between sphere surfaces
+    pairs = {(names[i], names[j]) for i, j in self_pairs(g1)}
+    assert ("left_shin_0", "right_shin_0") in pairs and ("left_shin_1", "right_shin_2") in pairs

@@ -72,9 +72,10 @@ def self_pairs(model: G1Model) -> tuple:
         for arm in (f"{s}_hand", f"{s}_hand_tip", f"{s}_wrist"):
             for other in ("pelvis", f"{s}_hip_pitch", f"{s}_hip_roll", f"{s}_thigh_0", f"{s}_thigh_1"):
                 pairs.append((idx[arm], idx[other]))
-    for a in ("left_shin_0", "left_shin_1", "left_thigh_1"):
-        for b in ("right_shin_0", "right_shin_1", "right_thigh_1"):
-            pairs.append((idx[a], idx[b]))
+    legs = ("shin_0", "shin_1", "shin_2", "thigh_1")
+    for a in legs:
+        for b in legs:
+            pairs.append((idx[f"left_{a}"], idx[f"right_{b}"]))
     pairs.append((idx["left_foot_0"], idx["right_foot_0"]))
     pairs.append((idx["left_foot_1"], idx["right_foot_1"]))
     return tuple(pairs)

@@ -267,7 +267,10 @@ class G1Model:
                                    0.09, "head"))
         for s in ("left", "right"):
             seg(f"{s}_thigh", f"{s}_hip_yaw_joint", f"{s}_knee_joint", 0.065, 2, f"{s}_thigh", 0.2, 0.75)
-            seg(f"{s}_shin", f"{s}_knee_joint", f"{s}_ankle_pitch_joint", 0.05, 2, f"{s}_shin", 0.15, 0.8)
+            # shin: from the knee joint down, 12 cm apart (the knee link mesh is +-3.6 cm wide, its
+            # kneecap 6.4 cm forward of the joint); with two spheres 19.5 cm apart S1's plan swung
+            # one knee 75 mm through the other on MuJoCo's meshes (docs/execution.md)
+            seg(f"{s}_shin", f"{s}_knee_joint", f"{s}_ankle_pitch_joint", 0.05, 3, f"{s}_shin", 0.0, 0.8)
             # foot: two spheres just above the sole (2 mm gap) so a planted sole is collision-free
             for i, xo in enumerate((-0.02, 0.09)):
                 out.append(CollisionSphere(f"{s}_foot_{i}", jid(f"{s}_ankle_roll_joint"),
