@@ -127,3 +127,30 @@ def test_lift_box_friction_grasp():
     box_error = np.linalg.norm(sim.object_pose("box")[0] - tr.objects["box"][0][-1])
     assert box_error < 0.05, f"box {box_error:.3f} m from its planned final position"
     assert sim.model.neq == 0  # no equality (weld) constraints exist in the world
+
+
+def test_hand_force_stops_when_the_object_is_lost():
+    """The planned hand force is fed forward while the hand touches its object, and stops
+    ``hand_lost_time`` after the object has gone (S1's box slipping out of the hands in the lift:
+    the QP kept assuming its squeeze and weight for the rest of the carry)."""
+    sim, tr = simulation("case_lift_box")
+    wbc = WholeBodyController(sim.world, tr)
+    sim.set_controller(wbc)
+    span = [ph for ph in tr.phases if "left_hand" in ph.contacts]
+    t_mid = 0.5 * (span[0].start + span[-1].end)
+    while wbc.status.t_ref < t_mid:
+        sim.step()
+    i, _s = tr.index_at(wbc.status.t_ref)
+    planned = tr.forces["left_hand"][i]
+    assert np.linalg.norm(planned) > 1.0
+    assert np.linalg.norm(wbc.last_forces["left_hand"] - planned) < 0.05 * np.linalg.norm(planned) + 0.5
+    box = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "box")
+    for g in range(sim.model.ngeom):  # the box stops colliding: for the hands it is gone
+        if sim.model.geom_bodyid[g] == box:
+            sim.model.geom_contype[g] = sim.model.geom_conaffinity[g] = 0
+    t_gone = wbc.status.t_ref
+    while wbc.status.t_ref < t_gone + wbc.g.hand_lost_time + 0.05:
+        sim.step()
+    assert "left_hand" in tr.phase_at(wbc.status.t_ref).contacts  # still a planned contact
+    assert np.linalg.norm(wbc.last_forces["left_hand"]) < 1e-6
+    assert np.linalg.norm(wbc.last_forces["right_hand"]) < 1e-6

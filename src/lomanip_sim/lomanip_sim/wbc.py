@@ -104,6 +104,13 @@ class WbcGains:
     hand_squeeze: float = -0.005  # m: hand target this far inside the surface (negative = into the object)
     hand_clearance: float = 0.02  # m, extra distance from the surface while approaching a contact
     hand_engage_error: float = 0.06  # m: planned hand force is applied once the hand got this close
+    # s: the planned hand force is fed forward only while the hand box has touched its object within
+    # this time (MuJoCo contacts; bridges the few-ms gaps of a sliding grasp; a grasp engaged at its
+    # target before touching gets this long to touch). Without it, once S1's box (the knee-sphere
+    # plan) slipped out of the hands in the lift at 3.7 s, the QP kept assuming the box's squeeze and
+    # weight on the hands through the carrying steps: the hands clashed and the robot fell at 5.3 s
+    # (6.2 s with it). 0 = the old latch (force from engagement to the end of the contact phase)
+    hand_lost_time: float = 0.1
 
 
 @dataclass
@@ -185,6 +192,7 @@ class WholeBodyController:
         self.last_forces: dict[str, np.ndarray] = {}
         self._last_tau = np.zeros(NJ)
         self._engaged: dict = {}
+        self._last_touch: dict = {}  # hand -> trajectory time its collision box last touched its object
         self._swing_start: dict = {}
 
     # ---------------------------------------------------------------------------- references
@@ -320,6 +328,7 @@ class WholeBodyController:
         self.t0 = float(data.time)
         self.status = WbcStatus()
         self._engaged.clear()
+        self._last_touch.clear()
         self._swing_start.clear()
 
     def trajectory_time(self, data: mujoco.MjData) -> float:
@@ -497,6 +506,9 @@ class WholeBodyController:
         beq = -h
         # hands: the planned force (on the robot) is imposed as feed-forward, not chosen by the QP,
         # so the QP can never lean on a free object as if it were a support
+        for limb in HANDS:
+            if limb not in contacts or contacts[limb] is None:  # a free hand: the next grasp starts afresh
+                self._last_touch.pop(limb, None)
         Ahand = np.zeros((3 * len(hand_points), nx))
         bhand = np.zeros(3 * len(hand_points))
         for k, (limb, _j) in enumerate(hand_points):
@@ -506,7 +518,13 @@ class WholeBodyController:
                 close = np.linalg.norm(lerp(R_.site_p[limb]) - data.site_xpos[self.site_id[limb]]) < g.hand_engage_error
                 if close or self._touching(data, limb, contacts[limb].object_id):
                     self._engaged[limb] = phase
-            if self._engaged.get(limb) is phase and limb in tr.forces:
+                    # engaged at its target before touching: the object gets hand_lost_time to be felt
+                    # (only at the start of a grasp; the grasp's later phases re-engage but keep the clock)
+                    self._last_touch.setdefault(limb, t)
+            if self._touching(data, limb, contacts[limb].object_id):
+                self._last_touch[limb] = t
+            lost = g.hand_lost_time > 0 and t - self._last_touch.get(limb, -np.inf) > g.hand_lost_time
+            if self._engaged.get(limb) is phase and limb in tr.forces and not lost:
                 bhand[3 * k : 3 * k + 3] = lerp(tr.forces[limb])
         # friction pyramids: 4 tangent rows + normal bounds per point
         Ain = np.zeros((5 * len(points), nx))
