@@ -28,3 +28,29 @@ def test_lift_off_knot_that_already_moved_is_caught():
     value, (foot, t) = foot_slip(res)
     assert value == pytest.approx(np.hypot(0.15, 0.04))
     assert foot == "left_foot" and t == pytest.approx(0.1)
+
+
+def test_a_carried_box_below_the_floor_counts_as_penetration(g1):
+    """The physical check sees a moving object's bottom corners under the floor (S1's old plans
+    passed with the box 14 cm into the floor)."""
+    from types import SimpleNamespace
+
+    from lomanip_to.checks import penetration_per_knot
+    from lomanip_to.discretize import ProblemData
+    from lomanip_to.fixtures import load_problem
+
+    prob = load_problem("case_lift_box", model=g1)
+    data = ProblemData(prob, g1)
+    K = 3
+    x = np.array(prob.initial_configuration, float)
+    bottom = prob.object("box").bottom_z()
+    # far from the robot and the table, resting on the floor
+    box = np.tile(np.r_[3.0, 0.0, -bottom, 0.0, 0.0, 0.0], (K, 1))
+    res = SimpleNamespace(t_knots=np.arange(K) * 0.1, x_knots=np.tile(x, (K, 1)), object_pose_knots={"box": box})
+    total, worst, _ = penetration_per_knot(g1, data, res)
+    assert worst < 1e-9
+    box[1, 2] -= 0.03   # 3 cm down at the middle knot
+    box[2, 3] = 0.1     # rolled, so one bottom edge dips (by 1.4 cm)
+    total, worst, k = penetration_per_knot(g1, data, res)
+    assert worst == pytest.approx(0.03, abs=1e-9) and k == 1
+    assert total[0] < 1e-9 and total[1] > 0.03 and total[2] > 0.0

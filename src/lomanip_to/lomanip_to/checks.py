@@ -57,6 +57,16 @@ def penetration_per_knot(model: G1Model, data, res):
             d = cs[s_idx][2] - s.radius  # floor
             if d < 0:
                 depth.append(-d)
+        for o in data.prob.objects:   # a moving object's bottom corners against the floor
+            if o.id not in res.object_pose_knots:
+                continue
+            pose = res.object_pose_knots[o.id][k]
+            R = rpy_to_rot(pose[3:6])
+            hx, hy = o.footprint_half()
+            for cx, cy in ((hx, hy), (hx, -hy), (-hx, hy), (-hx, -hy)):
+                d = pose[2] + float((R @ np.array([cx, cy, o.bottom_z()]))[2])
+                if d < 0:
+                    depth.append(-d)
         for (i, j) in sp:
             d = np.linalg.norm(cs[i] - cs[j]) - model.spheres[i].radius - model.spheres[j].radius
             if d < 0:

@@ -72,6 +72,10 @@ def self_pairs(model: G1Model) -> tuple:
         for arm in (f"{s}_hand", f"{s}_hand_tip", f"{s}_wrist"):
             for other in ("pelvis", f"{s}_hip_pitch", f"{s}_hip_roll", f"{s}_thigh_0", f"{s}_thigh_1"):
                 pairs.append((idx[arm], idx[other]))
+        # elbow region against the knee in a squat: S1's lift had the forearm 50 mm into the shin
+        for arm in (f"{s}_upper_arm_0", f"{s}_forearm_0"):
+            for other in (f"{s}_thigh_1", f"{s}_shin_0", f"{s}_shin_1"):
+                pairs.append((idx[arm], idx[other]))
     legs = ("shin_0", "shin_1", "shin_2", "thigh_1")
     for a in legs:
         for b in legs:
@@ -535,6 +539,8 @@ class ProblemData:
                 if mode not in ("supported", "rolling") and not placed:
                     rows(f"o{j} support contact (on surface, aligned)", k, -INF, INF)
                 rows(f"o{j} support friction cone", k, 0 if mode in ("supported", "rolling") else -INF, INF)
+                # only while carried: resting, the support row already holds the corners at the surface
+                rows(f"o{j} above the floor", k, 0 if mode == "free" else -INF, INF)
                 if mode != "rolling":
                     rows(f"o{j} rolling: no longitudinal wheel force", k, -INF, INF)
                     rows(f"o{j} nonholonomic: no lateral slip", k, -INF, INF)

@@ -340,6 +340,9 @@ class Window:
                 cones += [mu_o * us[2, i] - us[0, i], mu_o * us[2, i] + us[0, i],
                           mu_o * us[2, i] - us[1, i], mu_o * us[2, i] + us[1, i]]
             add(f"o{j} support friction cone", ca.vertcat(*cones))
+            # a carried object stays above the floor (its bottom corners): without it S1's plan
+            # lifted the box with its lowest corner 14.5 cm below the floor at 3.2 s (roll 0.17 rad)
+            add(f"o{j} above the floor", ca.vertcat(*[cpts[i][2] for i in range(4)]))
             heading = Ra[:, 0]
             lateral = Ra[:, 1]
             add(f"o{j} rolling: no longitudinal wheel force", ca.vertcat(*[ca.dot(us[:, i], heading) for i in range(4)]))
