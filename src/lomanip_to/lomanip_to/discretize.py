@@ -224,7 +224,31 @@ class ProblemData:
     def obj_mode(self, k: int, oid: str) -> str:
         ph = self.prob.phases[self.grid.phase[k]]
         mo = ph.objects.get(oid)
-        return "fixed" if mo is None else mo.mode
+        if mo is None:
+            return "fixed"
+        if mo.mode == "free" and self._lift_start(k, oid, mo):
+            return "supported"
+        return mo.mode
+
+    def _lift_start(self, k: int, oid: str, mo) -> bool:
+        """Whether knot ``k`` is the first of a lift: the object is free from here but was resting.
+
+        Why: forces act over [t_k, t_k+1], so an object free at its first knot had to be carried by
+        the hands alone from a posture chosen without its load (a segment's fixed first state, S1's
+        squat at the box): the waist could not, and the plans let the box fall 14 cm into the floor.
+        At that knot it still stands on its support (which may carry it) while the hands load up."""
+        phase = self.grid.phase[k]
+        if k > 0 and self.grid.phase[k - 1] == phase:
+            return False
+        if any(oid in ph.objects for ph in self.prob.phases[:phase]):
+            return False   # it moved before: only a first lift from where the scene has it
+        sup = mo.support
+        if sup != FLOOR and sup not in {o.id for o in self.prob.objects}:
+            return False   # no named support to stand on
+        o = self.prob.object(oid)
+        top = 0.0 if sup == FLOOR else float(np.asarray(self.prob.object(sup).position)[2] + self.prob.object(sup).top_z())
+        rpy = o.rpy()
+        return abs(float(o.position[2]) - (top - o.bottom_z())) < 1e-3 and abs(rpy[0]) < 1e-3 and abs(rpy[1]) < 1e-3
 
     def contact(self, k: int, limb: str):
         return self.prob.phases[self.grid.phase[k]].contacts.get(limb)
