@@ -51,6 +51,8 @@ _SELF_COLLISION_BODIES = (
 #: horizontal distance from the pelvis to where both hands hold an object in front of the G1 (m)
 HAND_REACH = 0.32
 
+#: leg joints (rad) of the squatting and crouched IK starts
+_SQUAT_LEGS = (("hip_pitch", -0.9), ("knee", 1.8), ("ankle_pitch", -0.8))
 #: crouched starts for hands low in front (pelvis height m, waist pitch, shoulder pitch, shoulder
 #: roll outward, rad). Differential IK from a standing start must fold the legs, bend the waist and
 #: bring the arms outside the knees at once, and with the self-collision limits it often stops in a
@@ -222,14 +224,13 @@ class Retargeter:
         if name in _CROUCH_SEEDS:
             height, waist, shoulder_pitch, shoulder_roll = _CROUCH_SEEDS[name]
             for side, sign in (("left", 1.0), ("right", -1.0)):
-                for joint, v in (("hip_pitch", -0.9), ("knee", 1.8), ("ankle_pitch", -0.8),
-                                 ("shoulder_pitch", shoulder_pitch), ("shoulder_roll", sign * shoulder_roll),
-                                 ("elbow", 0.3)):
+                for joint, v in (*_SQUAT_LEGS, ("shoulder_pitch", shoulder_pitch),
+                                 ("shoulder_roll", sign * shoulder_roll), ("elbow", 0.3)):
                     q[7 + G1_JOINT_NAMES.index(f"{side}_{joint}_joint")] = v
             q[7 + G1_JOINT_NAMES.index("waist_pitch_joint")] = waist
         elif name == "squat":
             for side in ("left", "right"):
-                for joint, v in (("hip_pitch", -0.9), ("knee", 1.8), ("ankle_pitch", -0.8), ("shoulder_pitch", -0.6)):
+                for joint, v in (*_SQUAT_LEGS, ("shoulder_pitch", -0.6)):
                     q[7 + G1_JOINT_NAMES.index(f"{side}_{joint}_joint")] = v
             q[7 + G1_JOINT_NAMES.index("waist_pitch_joint")] = 0.4
         elif name == "reach_up":

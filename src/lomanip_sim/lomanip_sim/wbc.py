@@ -514,14 +514,15 @@ class WholeBodyController:
         for k, (limb, _j) in enumerate(hand_points):
             c = NJ + NV + nfoot + 3 * k
             Ahand[3 * k : 3 * k + 3, c : c + 3] = np.eye(3)
+            touching = self._touching(data, limb, contacts[limb].object_id)
             if self._engaged.get(limb) is not phase:  # latch: hand touches its object, or is at its target
                 close = np.linalg.norm(lerp(R_.site_p[limb]) - data.site_xpos[self.site_id[limb]]) < g.hand_engage_error
-                if close or self._touching(data, limb, contacts[limb].object_id):
+                if close or touching:
                     self._engaged[limb] = phase
                     # engaged at its target before touching: the object gets hand_lost_time to be felt
                     # (only at the start of a grasp; the grasp's later phases re-engage but keep the clock)
                     self._last_touch.setdefault(limb, t)
-            if self._touching(data, limb, contacts[limb].object_id):
+            if touching:
                 self._last_touch[limb] = t
             lost = g.hand_lost_time > 0 and t - self._last_touch.get(limb, -np.inf) > g.hand_lost_time
             if self._engaged.get(limb) is phase and limb in tr.forces and not lost:

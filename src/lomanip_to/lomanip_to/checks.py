@@ -61,12 +61,8 @@ def penetration_per_knot(model: G1Model, data, res):
             if o.id not in res.object_pose_knots:
                 continue
             pose = res.object_pose_knots[o.id][k]
-            R = rpy_to_rot(pose[3:6])
-            hx, hy = o.footprint_half()
-            for cx, cy in ((hx, hy), (hx, -hy), (-hx, hy), (-hx, -hy)):
-                d = pose[2] + float((R @ np.array([cx, cy, o.bottom_z()]))[2])
-                if d < 0:
-                    depth.append(-d)
+            z = pose[2] + o.bottom_corners() @ rpy_to_rot(pose[3:6])[2]
+            depth.extend((-z[z < 0]).tolist())
         for (i, j) in sp:
             d = np.linalg.norm(cs[i] - cs[j]) - model.spheres[i].radius - model.spheres[j].radius
             if d < 0:

@@ -246,9 +246,16 @@ class ProblemData:
         if sup != FLOOR and sup not in {o.id for o in self.prob.objects}:
             return False   # no named support to stand on
         o = self.prob.object(oid)
-        top = 0.0 if sup == FLOOR else float(np.asarray(self.prob.object(sup).position)[2] + self.prob.object(sup).top_z())
         rpy = o.rpy()
-        return abs(float(o.position[2]) - (top - o.bottom_z())) < 1e-3 and abs(rpy[0]) < 1e-3 and abs(rpy[1]) < 1e-3
+        return (abs(float(o.position[2]) - (self._support_top(sup) - o.bottom_z())) < 1e-3
+                and abs(rpy[0]) < 1e-3 and abs(rpy[1]) < 1e-3)
+
+    def _support_top(self, support: str) -> float:
+        """World height of the top of ``support`` (the floor: 0) where the scene has it."""
+        if support == FLOOR:
+            return 0.0
+        s = self.prob.object(support)
+        return float(np.asarray(s.position)[2] + s.top_z())
 
     def contact(self, k: int, limb: str):
         return self.prob.phases[self.grid.phase[k]].contacts.get(limb)
@@ -787,15 +794,14 @@ class ProblemData:
         mass, I = self._lumped(k, oid)
         col[P[f"o{j}_m"]] = mass
         col[P[f"o{j}_I"]] = I.ravel(order="F")
-        hx, hy = o.footprint_half()
         bz = o.bottom_z()
-        col[P[f"o{j}_corners"]] = np.array([[hx, hy, bz], [hx, -hy, bz], [-hx, hy, bz], [-hx, -hy, bz]]).ravel()
+        col[P[f"o{j}_corners"]] = o.bottom_corners().ravel()
         col[P[f"o{j}_axle"]] = np.asarray(o.rear_axle, float)
         ph = self.prob.phases[self.grid.phase[k]]
         mo = ph.objects.get(oid)
         if mode in ("supported", "rolling"):
             sup = mo.support
-            hs = 0.0 if sup == FLOOR else (np.asarray(self.prob.object(sup).position)[2] + self.prob.object(sup).top_z())
+            hs = self._support_top(sup)
             col[P[f"o{j}_zrest"]] = hs - bz
         else:
             col[P[f"o{j}_zrest"]] = self.obj_nom[oid][k][2]

@@ -114,6 +114,12 @@ class SceneObject:
         hy = max(abs(p.position[1]) + p.half_extents()[1] for p in self.primitives)
         return np.array([hx, hy])
 
+    def bottom_corners(self) -> np.ndarray:
+        """(4, 3) corners of the footprint at the bottom (object frame): what rests on a support."""
+        hx, hy = self.footprint_half()
+        bz = self.bottom_z()
+        return np.array([[hx, hy, bz], [hx, -hy, bz], [-hx, hy, bz], [-hx, -hy, bz]])
+
     def inertia_matrix(self) -> np.ndarray:
         I = np.asarray(self.inertia, float)
         if I.shape == (3,):
