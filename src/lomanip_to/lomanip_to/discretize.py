@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .model import FEET, HANDS, LIMBS, SOLE_CENTER, G1Model, rot_to_rpy, rpy_to_rot
+from .model import FEET, HANDS, HIP_YAW_GAIT_RANGE, LIMBS, SOLE_CENTER, G1Model, rot_to_rpy, rpy_to_rot
 from .problem import FLOOR, STANCE, WALKING, Problem, SceneObject
 from .route import footprint_of, point_along, shortest_route
 from .transcription import Structure, Window
@@ -90,6 +90,9 @@ SWING_TILT = 0.05
 #: limb and waist joint torques are held to this fraction of the G1 limits in the TO (quasi-static rows), so
 #: that the inertia the rows leave out still fits under the limit in the a-posteriori RNEA check
 TORQUE_MARGIN = 0.8
+#: least lateral distance (m) of the sole centres in the base's frame (the hips are 0.24 m apart):
+#: keeps the legs from crossing, including between knots where the sphere pairs are not checked
+FEET_MIN_LATERAL = 0.10
 #: time (s) the nominal takes to stand up after the hands let go at the end of a task or segment
 STAND_UP_TIME = 1.0
 
@@ -470,6 +473,8 @@ class ProblemData:
             xl[2], xu[2] = 0.2, 1.6
             xl[3:5], xu[3:5] = -0.9, 0.9
             xl[6:], xu[6:] = m.q_lower, m.q_upper
+            for j in m.hip_yaw_indices:
+                xl[6 + j], xu[6 + j] = max(xl[6 + j], -HIP_YAW_GAIT_RANGE), min(xu[6 + j], HIP_YAW_GAIT_RANGE)
             setb("x", k, xl, xu)
             vmax = np.concatenate([np.full(6, 4.0), m.vel_max])
             setb("xd", k, -vmax, vmax)
@@ -584,6 +589,7 @@ class ProblemData:
             for (a, b) in win.st.self_pairs:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
             rows("floor clearance", k, 0, INF)  # smooth, so on in every homotopy stage
+            rows("feet apart", k, FEET_MIN_LATERAL if k > 0 else -INF, INF)  # knot 0 is the measured start
             # |tau| <= TORQUE_MARGIN tau_max: the rows leave out the distal links' inertia
             rows("joint torques (quasi-static)", k, -TORQUE_MARGIN, TORQUE_MARGIN)
 

@@ -59,6 +59,11 @@ LIMB_JOINT = {"left_foot": "left_ankle_roll_joint", "right_foot": "right_ankle_r
               "left_hand": "left_wrist_yaw_joint", "right_hand": "right_wrist_yaw_joint"}
 
 
+#: the TO's hip yaw range (rad), narrower than the G1's +-2.76: a gait choice, not a joint limit. With
+#: the full range S1's carry walked with the left foot turned 1.7 rad from the pelvis (hip yaw 1.87), and
+#: the executed plan fell there. 0.8 rad is about a human's hip rotation; turns take several steps
+HIP_YAW_GAIT_RANGE = 0.8
+
 class ModelError(RuntimeError):
     """The G1 model file could not be found or loaded."""
 
@@ -183,6 +188,8 @@ class G1Model:
         self.mass = float(sum(i.mass for i in m.inertias))
         self.q_lower = np.array(m.lowerPositionLimit[7:])
         self.q_upper = np.array(m.upperPositionLimit[7:])
+        #: indices (into the 29 joints) of the two hip yaw joints
+        self.hip_yaw_indices = [list(m.names[2:]).index(n) for n in ("left_hip_yaw_joint", "right_hip_yaw_joint")]
         self.tau_max = np.array(m.effortLimit[6:])
         self.vel_max = np.array(m.velocityLimit[6:]) if np.all(np.isfinite(m.velocityLimit[6:])) \
             and np.all(np.asarray(m.velocityLimit[6:]) > 0) else np.full(self.nj, 20.0)

@@ -392,6 +392,12 @@ class Window:
         # every collision sphere above the floor (z = 0): the sole rows only keep the sole point
         # up, so a toe-down swing foot put its sphere 10 mm into the floor (push_trolley, t = 0.2 s)
         add("floor clearance", ca.vertcat(*[spheres[s][2] - m.spheres[s].radius for s in range(len(m.spheres))]))
+        # the soles stay on their own side of the pelvis: left sole minus right sole along the base's
+        # lateral axis. S1's plan walked with the left foot turned 1.7 rad and the ankles 25 cm crossed
+        # (the sphere pairs are checked at knots only, so the knees passed through each other between
+        # two of them, 68 mm deep on MuJoCo's meshes)
+        lat = ca.vertcat(-ca.sin(wa["x"][5]), ca.cos(wa["x"][5]))
+        add("feet apart", ca.dot(limbs["left_foot"][0][0:2] - limbs["right_foot"][0][0:2], lat))
         for (i, j) in st.self_pairs:
             si, sj = m.spheres[i], m.spheres[j]
             dd = ca.sumsqr(spheres[i] - spheres[j]) - (si.radius + sj.radius + pp["self_margin"]) ** 2
