@@ -48,3 +48,35 @@ def test_s2_footsteps_go_round_the_trolley(s2_plan):
             for limb, c in ph.contacts.items() if limb.endswith("foot")]
     assert feet
     assert min(fp.distance(p) for p in feet) > 0.1
+
+
+@pytest.fixture(scope="module")
+def s1_plan():
+    goal = PlacementGoal("box", (1.42, 1.0, 0.15), 0.0)
+    prompts = ["pick up the box", "place the box next to the shelf", "step on the box and grab the basket"]
+    return offline.plan("s1_basket", prompts, {"box": goal}, {"box_yaw": 0.0}, solve=False)
+
+
+def test_s1_from_prompts_has_the_fixtures_structure(s1_plan):
+    """Like the hand-written S1 fixture (16.4 s: 2 steps to the box, 8 carrying it, 2 onto it): the
+    robot works the box from its own side, carries it about 0.3 m a step, squats moderately."""
+    from lomanip_to.problem import WALKING
+
+    prob = s1_plan.problem
+    assert prob.duration < 22.0 and len(prob.phases) < 50
+    walking = [ph for ph in prob.phases if ph.phase_type == WALKING]
+    assert sum(ph.subtask_index == 0 for ph in walking) <= 4           # no walk round the box
+    assert sum("box" in ph.objects for ph in walking) <= 10            # carry: fixture 8
+    pick, place = s1_plan.keyframes[0], s1_plan.keyframes[1]
+    assert pick.qpos[0] < 0.7 - 0.3 and abs(pick.qpos[1]) < 0.15     # in front of the box (x = 0.7)
+    assert pick.qpos[2] > 0.2                                          # not the 0.16 m squat
+    # the grasp is rigid: the place keyframe's hands sit where the pick's did, moved with the box
+    hp = {c.limb: np.asarray(c.position) - [0.7, 0.0, 0.15] for c in pick.contacts if c.limb.endswith("hand")}
+    g = prob.placement_goals[0]
+    c, s = np.cos(g.yaw), np.sin(g.yaw)
+    for t in place.contacts:
+        if t.limb.endswith("hand"):
+            d = np.asarray(t.position) - np.asarray(g.position)
+            assert np.allclose([c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2]], hp[t.limb], atol=1e-6)
+    # the robot places the box standing in front of the shelf (x = 1.70), facing it
+    assert place.qpos[0] < 1.42 - 0.3 and abs(place.qpos[1] - 1.0) < 0.15

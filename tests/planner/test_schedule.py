@@ -92,3 +92,25 @@ def test_placing_nothing_is_an_error():
     with pytest.raises(ScheduleError, match="nothing is held"):
         plan_schedule(stance, [SubtaskKeyframe(0, "place the box", G1_STAND_QPOS.copy(), _feet(0.0),
                                                placement=PlacementGoal("box", (1, 0, 0.15), 0.0))])
+
+
+def test_steps_follow_the_horizontal_distance_and_the_lift_opens_the_next_subtask():
+    """As in the hand-written fixtures: the pick's keyframe is the grasp (box at rest), the lift is the
+    first phase of the carry; a step up onto the box is one (longer) step of each foot."""
+    tm = Timing()
+    stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+    sched = plan_schedule(stance, _s1_subtasks(), tm)
+    ph = sched.phases
+    kf_pick = sched.keyframes[0].time
+    at_pick = [p for p in ph if p.end <= kf_pick + 1e-9]
+    assert at_pick[-1].subtask_index == 0 and "box" not in at_pick[-1].objects
+    assert {"left_hand", "right_hand"} <= set(at_pick[-1].contacts)
+    first_carry = next(p for p in ph if p.subtask_index == 1)
+    assert first_carry.start == pytest.approx(kf_pick) and first_carry.objects["box"].mode == "free"
+    assert first_carry.phase_type != WALKING
+    # subtask 2: 0.42 m onto the box -> 2 steps per foot at 0.35 m, the last of each onto the box
+    steps = [p for p in ph if p.subtask_index == 2 and p.phase_type == WALKING]
+    assert len(steps) == 4
+    assert [p.end - p.start for p in steps] == pytest.approx([tm.step, tm.step, tm.step_up, tm.step_up])
+    # the last subtask grabs (no lift): the basket never moves
+    assert not any("basket" in p.objects for p in ph)

@@ -12,7 +12,7 @@ from lomanip_sim.robot_model import G1_JOINT_NAMES
 from lomanip_to.problem import FLOOR, PlacementGoal
 
 from .keyframes import SubtaskPerception
-from .retargeting import LimbTarget
+from .retargeting import LimbTarget, pelvis_height_ratio
 
 
 def robot_qpos(joints: JointState, pelvis_transform) -> np.ndarray:
@@ -41,15 +41,16 @@ def subtasks_from_perception(contact_set, human_poses, prompts: list[str]) -> li
         contacts = [] if sub is None else [
             LimbTarget(c.limb, _vec(c.position), _vec(c.normal), c.object_id or FLOOR) for c in sub.contacts]
         pose = poses.get(i)
-        orientation, prior = None, {}
+        orientation, prior, ratio = None, {}, None
         if pose is not None:
+            ratio = pelvis_height_ratio({n: _vec(p) for n, p in zip(pose.keypoint_names, pose.keypoints)})
             q = pose.root_pose.orientation
             if abs(q.x) + abs(q.y) + abs(q.z) + abs(q.w) > 0:
                 # Keep the heading of the human pelvis; roll and pitch come from the IK.
                 yaw = frames.quat_to_yaw(frames.xyzw_to_wxyz([q.x, q.y, q.z, q.w]))
                 orientation = frames.yaw_to_quat(yaw)
             prior = {n: float(a) for n, a in zip(pose.joint_names, pose.joint_angles) if n in G1_JOINT_NAMES}
-        out.append(SubtaskPerception(i, prompt, contacts, orientation, prior))
+        out.append(SubtaskPerception(i, prompt, contacts, orientation, prior, ratio))
     return out
 
 

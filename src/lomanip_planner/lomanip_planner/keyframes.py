@@ -25,8 +25,11 @@ import numpy as np
 
 from lomanip_to.problem import FLOOR, Options, PlacementGoal, Problem, SceneObject
 
+from lomanip_to.route import footprint_of
+
 from .retargeting import FEET, HANDS, LimbTarget, RetargetTarget, Retargeter, RetargetingError
 from .schedule import Schedule, actions_of, Stance, SubtaskKeyframe, Timing, plan_schedule
+from .symmetry import best_grasp_match, rotate_about, stance_cost, stance_yaw, yaw_symmetries
 
 
 @dataclass
@@ -38,6 +41,8 @@ class SubtaskPerception:
     contacts: list[LimbTarget]
     base_orientation_wxyz: np.ndarray | None = None
     joint_prior: dict[str, float] = field(default_factory=dict)
+    #: the person's pelvis height as a fraction of its leg (retargeting.pelvis_height_ratio)
+    pelvis_height_ratio: float | None = None
 
 
 def surface_height(object_id: str, objects: dict[str, SceneObject]) -> float:
@@ -119,13 +124,116 @@ def push_goal(obj: SceneObject, d: "_Displacement | None" = None, distance: floa
     return PlacementGoal(o.id, tuple(float(v) for v in p), float(yaw))
 
 
+def _displaced(d: "_Displacement | None", t: LimbTarget) -> LimbTarget:
+    return d.moved(t) if d is not None else t
+
+
+def _world_contacts(contacts: list[LimbTarget], by_id: dict[str, SceneObject], moved: dict[str, "_Displacement"],
+                    carried: "_Displacement | None") -> dict[str, LimbTarget]:
+    """Perceived contacts where the plan has their objects (floor feet move with a carried object)."""
+    return {c.limb: _displaced(moved.get(c.object_id) if c.object_id in by_id else carried, c) for c in contacts}
+
+
+def _yaw_of(q_wxyz) -> float | None:
+    from lomanip_sim import frames as fr
+
+    return None if q_wxyz is None else fr.quat_to_yaw(np.asarray(q_wxyz, float))
+
+
+def _orient(st: SubtaskPerception, by_id: dict[str, SceneObject], moved: dict[str, "_Displacement"],
+            placements: dict[str, PlacementGoal], grasps: dict[str, dict[str, LimbTarget]], placing: str | None,
+            feet_now: dict, held_now: set[str]) -> tuple[list[LimbTarget], float | None, PlacementGoal | None]:
+    """The subtask's perceived contacts and pelvis yaw turned by the symmetry of the object the
+    demonstration was transferred through (its first contact's object) that suits the robot best
+    (symmetry.py); for a placement, the hands keep the grasp they picked the object with and the
+    goal's yaw is chosen among its symmetric equivalents. Returns (contacts in the perceived frame,
+    pelvis yaw in the perceived frame, the placement goal to use)."""
+    contacts = list(st.contacts)
+    yaw0 = _yaw_of(st.base_orientation_wxyz)
+    pivot = next((c.object_id for c in contacts if c.object_id in by_id), None)
+    syms = yaw_symmetries(by_id[pivot]) if pivot is not None and by_id[pivot].movable else (0.0,)
+    goal = placements.get(placing) if placing is not None else None
+    if len(syms) == 1 and (placing is None or placing not in grasps):
+        return contacts, yaw0, goal
+    centre = np.asarray(by_id[pivot].position, float)
+
+    def turned(a: float) -> list[LimbTarget]:
+        return [rotate_about(c, centre, a) if c.object_id in (pivot, "", FLOOR) else c for c in contacts]
+
+    def turned_yaw(a: float) -> float | None:
+        return None if yaw0 is None else yaw0 + a
+
+    left, right = feet_now["left_foot"][0], feet_now["right_foot"][0]
+    mid, yaw_now = 0.5 * (left + right), stance_yaw(left, right)
+    stand_on = {c.object_id for c in contacts if c.limb in FEET}
+    if placing is not None and placing in grasps:
+        # the grasp is rigid: the demonstration's stance on the side its hands match the held grasp
+        cands = {a: {c.limb: c for c in turned(a)} for a in syms}
+        a_demo = best_grasp_match(cands, grasps[placing])
+        contacts = [grasps[placing][c.limb] if c.limb in HANDS and c.object_id == placing and c.limb in grasps[placing]
+                    else c for c in turned(a_demo)]
+        yaw_demo = turned_yaw(a_demo)
+        best = None
+        for a in syms:   # the placed box's yaw: equivalent placements, the robot's stance differs
+            g = replace(goal, yaw=float(goal.yaw + a))
+            d = _Displacement.of(by_id[placing], g)
+            m = {**moved, placing: d}
+            world = _world_contacts(contacts, by_id, m, d)
+            obstacles = [footprint_of(o, d.target if o.id == placing else _as_placed(o, m.get(o.id)).position,
+                                      (0.0, 0.0, _as_placed(o, m.get(o.id)).yaw())) for o in by_id.values()
+                         if o.primitives and o.id not in stand_on]
+            route_obs = [fp for fp in obstacles if fp.name not in held_now]
+            cost = stance_cost(world, None if yaw_demo is None else yaw_demo + d.dyaw, mid, yaw_now, obstacles,
+                               route_obs).total
+            if best is None or cost < best[0] - 1e-9:
+                best = (cost, g)
+        return contacts, yaw_demo, best[1]
+    best = None
+    obstacles = [footprint_of(o, _as_placed(o, moved.get(o.id)).position, (0.0, 0.0, _as_placed(o, moved.get(o.id)).yaw()))
+                 for o in by_id.values() if o.primitives and o.id not in stand_on]
+    route_obs = [fp for fp in obstacles if fp.name not in held_now]
+    carried = next((moved[h] for h in held_now if h in moved), None)
+    for a in syms:
+        cs = turned(a)
+        world = _world_contacts(cs, by_id, moved, carried)
+        y = turned_yaw(a)
+        if y is not None and carried is not None:
+            y += carried.dyaw
+        cost = stance_cost(world, y, mid, yaw_now, obstacles, route_obs).total
+        if best is None or cost < best[0] - 1e-9:
+            best = (cost, cs, turned_yaw(a))
+    return best[1], best[2], goal
+
+
+def _solve_keyframe(retargeter: Retargeter, st: SubtaskPerception, targets: tuple, base_orientation,
+                    q: np.ndarray | None):
+    """The keyframe's IK, relaxed step by step until it is feasible: the person's feet and pelvis
+    height; then floor feet that may slide (the demonstrator's stance is an adult's: the G1 steps
+    to where it reaches); then without the pelvis height (differential IK is local: a height the
+    hands cannot reach from may leave it short). Returns (result, whether the feet slid)."""
+    ladder = [(False, st.pelvis_height_ratio), (True, st.pelvis_height_ratio)]
+    if st.pelvis_height_ratio is not None:
+        ladder.append((True, None))
+    error = None
+    for slide, ratio in ladder:
+        try:
+            res = retargeter.solve(RetargetTarget(targets, base_orientation, st.joint_prior, floor_feet_slide=slide,
+                                                  pelvis_height_ratio=ratio), q)
+            return res, slide
+        except RetargetingError as exc:
+            error = exc
+    raise RetargetingError(error.code, f"subtask {st.index} ({st.prompt!r}): {error}") from error
+
+
 def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObject], stance: Stance,
                       retargeter: Retargeter, placements: dict[str, PlacementGoal] | None = None,
                       current_qpos: np.ndarray | None = None,
                       push_distance: float = PUSH_DISTANCE) -> list[SubtaskKeyframe]:
     """One retargeted keyframe per subtask, chained (each starts from the previous solution)."""
+    from lomanip_sim import frames as fr
+
     by_id = {o.id: o for o in objects}
-    placements = placements or {}
+    placements = dict(placements or {})
     feet_now = {"left_foot": (stance.left.copy(), stance.left_surface),
                 "right_foot": (stance.right.copy(), stance.right_surface)}
     out: list[SubtaskKeyframe] = []
@@ -134,18 +242,22 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
     # and with it the footsteps of the whole plan. ``current_qpos`` is kept for callers' records.
     q = None
     moved: dict[str, _Displacement] = {}
+    grasps: dict[str, dict[str, LimbTarget]] = {}   # object -> hand contacts it is held by (perceived frame)
+    held_now: set[str] = set()
     for st in subtasks:
         targets: list[LimbTarget] = []
         held = [c.object_id for c in st.contacts if c.limb in HANDS]
         placing = next((oid for oid in held if oid in placements and oid in by_id), None) \
             if "place" in actions_of(st.prompt) else None
+        contacts, base_yaw, goal = _orient(st, by_id, moved, placements, grasps, placing, feet_now, held_now)
         if placing is not None:
-            moved[placing] = _Displacement.of(by_id[placing], placements[placing])
+            placements[placing] = goal
+            moved[placing] = _Displacement.of(by_id[placing], goal)
         carried = next((moved[oid] for oid in held if oid in moved), None)
-        given = {}
-        for c in st.contacts:   # perceived where the objects are now; move them to where the plan has them
-            d = moved.get(c.object_id) if c.object_id in by_id else carried
-            given[c.limb] = d.moved(c) if d is not None else c
+        given = _world_contacts(contacts, by_id, moved, carried)
+        if base_yaw is not None and carried is not None:
+            base_yaw += carried.dyaw
+        base_orientation = None if base_yaw is None else fr.yaw_to_quat(base_yaw)
         for limb in FEET:
             if limb in given:
                 c = given[limb]
@@ -162,22 +274,22 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
                 if c.object_id not in by_id:
                     raise RetargetingError(-2, f"subtask {st.index}: {limb} touches unknown object {c.object_id!r}")
                 targets.append(LimbTarget(limb, np.asarray(c.position, float), np.asarray(c.normal, float), c.object_id))
-        try:
-            try:
-                res = retargeter.solve(RetargetTarget(tuple(targets), st.base_orientation_wxyz, st.joint_prior), q)
-            except RetargetingError:
-                # the demonstrator's stance is an adult's: let floor feet slide to where the G1 reaches
-                res = retargeter.solve(RetargetTarget(tuple(targets), st.base_orientation_wxyz, st.joint_prior,
-                                                      floor_feet_slide=True), q)
-                targets = [LimbTarget(t.limb, res.contact_points[t.limb].copy(), t.normal, t.object_id)
-                           if t.limb in FEET else t for t in targets]
-                for t in targets:
-                    if t.limb in FEET:
-                        feet_now[t.limb] = (t.position.copy(), t.object_id)
-        except RetargetingError as exc:
-            raise RetargetingError(exc.code, f"subtask {st.index} ({st.prompt!r}): {exc}") from exc
+        res, slid = _solve_keyframe(retargeter, st, tuple(targets), base_orientation, q)
+        if slid:
+            targets = [LimbTarget(t.limb, res.contact_points[t.limb].copy(), t.normal, t.object_id)
+                       if t.limb in FEET else t for t in targets]
+            for t in targets:
+                if t.limb in FEET:
+                    feet_now[t.limb] = (t.position.copy(), t.object_id)
         q = res.qpos
         hand_objects = [t.object_id for t in targets if t.limb in HANDS]
+        actions = actions_of(st.prompt)
+        if placing is not None:
+            held_now.discard(placing)
+        if "pick" in actions:
+            for oid in dict.fromkeys(hand_objects):
+                grasps[oid] = {c.limb: c for c in contacts if c.limb in HANDS and c.object_id == oid}
+                held_now.add(oid)
         rolling = frozenset(o.id for o in objects if o.object_class == "trolley")
         placement = next((placements[oid] for oid in hand_objects if oid in placements), None)
         push_feet = []

@@ -16,7 +16,7 @@ from lomanip_sim import frames
 from lomanip_sim.robot_model import G1_JOINT_NAMES
 
 from .keyframes import SubtaskPerception, build_problem, retarget_subtasks, stance_from_qpos, x_from_qpos
-from .retargeting import LimbTarget, Retargeter
+from .retargeting import LimbTarget, Retargeter, pelvis_height_ratio
 from .schedule import FLOOR, Schedule, SubtaskKeyframe
 
 #: s of simulated standing before the robot state is read (what the node sees a moment after start)
@@ -81,7 +81,8 @@ def subtasks_from_results(results, prompts: list[str]) -> list[SubtaskPerception
                                c.object_id or FLOOR) for c in r.contacts]
         yaw = frames.quat_to_yaw(np.asarray(r.root_quat, float))
         prior = {n: float(a) for n, a in zip(r.joint_names, r.joint_angles) if n in G1_JOINT_NAMES}
-        out.append(SubtaskPerception(i, prompt, contacts, frames.yaw_to_quat(yaw), prior))
+        out.append(SubtaskPerception(i, prompt, contacts, frames.yaw_to_quat(yaw), prior,
+                                     pelvis_height_ratio(r.keypoints_world)))
     return out
 
 

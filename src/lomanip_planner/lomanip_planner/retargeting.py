@@ -22,6 +22,7 @@ from typing import Mapping, Sequence
 import lomanip_sim  # noqa: F401  (headless GL default before mujoco loads)
 import mink
 import mujoco
+from mink.exceptions import NoSolutionFound
 import numpy as np
 
 from lomanip_sim import frames
@@ -46,6 +47,28 @@ _SELF_COLLISION_BODIES = (
      ("right_knee_link", "right_ankle_pitch_link", "right_ankle_roll_link")),
     (("left_wrist_yaw_link",), ("right_wrist_yaw_link",)),
 )
+
+
+#: weight of the pelvis height prior (hands 100-1000, feet 1000, base orientation 5, posture 0.01)
+PELVIS_HEIGHT_COST = 3.0
+
+
+def pelvis_height_ratio(keypoints: Mapping[str, np.ndarray]) -> float | None:
+    """A person's pelvis height above its feet over its straight-leg pelvis height (hip-knee +
+    knee-ankle + ankle above the sole), from world keypoints; None when some are missing."""
+    try:
+        legs = []
+        for side in ("left", "right"):
+            hip, knee, ankle, foot = (np.asarray(keypoints[f"{side}_{k}"], float) for k in ("hip", "knee", "ankle", "foot"))
+            legs.append(np.linalg.norm(hip - knee) + np.linalg.norm(knee - ankle) + abs(ankle[2] - foot[2]))
+        feet_z = 0.5 * (float(keypoints["left_foot"][2]) + float(keypoints["right_foot"][2]))
+        height = float(keypoints["pelvis"][2]) - feet_z
+    except KeyError:
+        return None
+    leg = float(np.mean(legs))
+    if leg < 1e-3 or not np.isfinite(height):
+        return None
+    return float(np.clip(height / leg, 0.3, 1.0))
 
 
 #: horizontal distance from the pelvis to where both hands hold an object in front of the G1 (m)
@@ -101,6 +124,12 @@ class RetargetTarget:
     #: paper's foot-position cost (eq. 2) later asks of the TO. The residual of such a foot is its
     #: height error; its final position becomes the keyframe's foot target.
     floor_feet_slide: bool = False
+    #: the human's pelvis height above its feet as a fraction of its straight-leg pelvis height
+    #: (:func:`pelvis_height_ratio`); while the G1's pelvis is below the same fraction of its own
+    #: leg it is pulled up (a soft one-sided bound: never pulled down). None = no bound. Why: the
+    #: human joint angles alone let the shorter-armed G1 sink into a squat far deeper than the
+    #: person's (S1's pick: pelvis 0.16-0.19 m while the person's was at 49 % of its leg)
+    pelvis_height_ratio: float | None = None
 
 
 @dataclass
@@ -149,6 +178,7 @@ class Retargeter:
         self.stand = self.model.key("stand").qpos.copy()
         self._sliding: set[str] = set()   # feet allowed to slide in the current solve
         self.sole_offset = self._measure_sole_offset()
+        self.leg_length = self._measure_leg_length()
         self.limb_tasks = {
             # Feet carry the robot: they outrank the hands, so an unreachable hand target shows as
             # a hand residual instead of a lifted foot.
@@ -174,6 +204,15 @@ class Retargeter:
         bottoms = [data.geom_xpos[g][2] - self.model.geom_size[g][0] for g in range(self.model.ngeom)
                    if self.model.geom_bodyid[g] == foot_body and self.model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE]
         return float(data.site("left_foot").xpos[2] - min(bottoms))
+
+    def _measure_leg_length(self) -> float:
+        """Pelvis height above the soles with straight legs (every joint at zero)."""
+        data = mujoco.MjData(self.model)
+        data.qpos[:] = 0.0
+        data.qpos[3] = 1.0
+        mujoco.mj_kinematics(self.model, data)
+        sole = min(data.site(f).xpos[2] for f in FEET) - self.sole_offset
+        return float(data.xpos[self.model.body("pelvis").id][2] - sole)
 
     def _collision_pairs(self) -> list[tuple[list[int], list[int]]]:
         def geoms(bodies: Sequence[str]) -> list[int]:
@@ -249,8 +288,12 @@ class Retargeter:
         self.configuration.update(q0)
 
         tasks = [self.base_task, self.posture_task]
+        pelvis_z = None   # a floor under the pelvis: one-sided, switched on while the pelvis is below it
+        if target.pelvis_height_ratio is not None and feet:
+            pelvis_z = float(np.mean([t.position[2] for t in feet])) + target.pelvis_height_ratio * self.leg_length
+        self.base_task.set_position_cost(np.zeros(3))
         self.base_task.set_target(mink.SE3.from_rotation_and_translation(
-            mink.SO3(frames.matrix_to_quat(base_R)), np.zeros(3)))
+            mink.SO3(frames.matrix_to_quat(base_R)), np.array([0.0, 0.0, pelvis_z or 0.0])))
         posture = self.stand.copy()
         for name, angle in target.joint_prior.items():
             if name not in G1_JOINT_NAMES:
@@ -277,7 +320,15 @@ class Retargeter:
             if self._sliding and len(feet) == 2:   # balance over where the feet are now, not their old targets
                 mid = np.mean([self.configuration.data.site(f).xpos for f in FEET], axis=0)
                 self.com_task.set_target(np.array([mid[0], mid[1], 0.0]))
-            vel = mink.solve_ik(self.configuration, tasks, self.dt, self.solver, damping=1e-3, limits=self.limits)
+            if pelvis_z is not None:
+                below = self.configuration.data.body("pelvis").xpos[2] < pelvis_z
+                self.base_task.set_position_cost(np.array([0.0, 0.0, PELVIS_HEIGHT_COST if below else 0.0]))
+            try:
+                vel = mink.solve_ik(self.configuration, tasks, self.dt, self.solver, damping=1e-3, limits=self.limits)
+            except NoSolutionFound:
+                # the velocity limits admit no step from here (seen on S1 with the pelvis height
+                # bound): this start ends where it is; solve() scores it and tries the next one
+                break
             self.configuration.integrate_inplace(vel, self.dt)
             if iterations % 10 == 0:
                 res = self._residuals(targets)

@@ -5,11 +5,14 @@ stance and each keyframe the schedule inserts:
 
 1. walking: footsteps from the current feet to the keyframe's feet (each step = a single-support
    phase with the swing foot free, then a double-support phase), at most ``max_step_length`` per
-   step, onto the floor or onto an object's top (stepping on the box in S1); hands that hold a
+   step horizontally, onto the floor or onto an object's top (stepping on the box in S1: the last
+   step of each foot, a longer one); hands that hold a
    carried object keep holding it and the object moves with them (``free``);
 2. the manipulation of the subtask, from its verb and its contacts:
-   * pick / grab / lift / take: reach (no hand contact) -> grasp (hands on the object, object still)
-     -> lift (object ``free``, carried from then on);
+   * pick / grab / lift / take: reach (no hand contact) -> grasp (hands on the object, object still;
+     the keyframe) -> lift (object ``free``, carried from then on). The lift opens the next subtask
+     (as in the hand-written fixtures); in the plan's last subtask only a prompt that says so
+     ("pick up", "lift", ...) lifts, "grab the basket" ends holding it;
    * place / put / set: lower the carried object to its placement goal (``free``) -> release (hands
      still in contact, object resting) -> retract (hands free); the object is no longer carried;
    * push: walk up to the keyframe's feet, reach and grasp (the keyframe), then the object moves
@@ -54,6 +57,16 @@ _VERBS = {
 }
 
 
+_LIFT_VERBS = ("pick up", "lift", "take", "retrieve", "carry")
+
+
+def lifts(prompt: str) -> bool:
+    """Whether a prompt asks to lift what it grasps ("pick up the box"), not only to grab it
+    ("grab the basket" as the plan's last subtask ends holding it where it is)."""
+    text = prompt.lower()
+    return any(re.search(rf"\b{re.escape(v)}\b", text) for v in _LIFT_VERBS)
+
+
 def actions_of(prompt: str) -> list[str]:
     """Actions a prompt asks for, in the order they appear ("step on the box and grab ..." ->
     ["step_on", "pick"])."""
@@ -68,14 +81,21 @@ def actions_of(prompt: str) -> list[str]:
 
 @dataclass(frozen=True)
 class Timing:
-    step: float = 0.6               # single support per step (s)
-    double_support: float = 0.3     # between steps
-    max_step_length: float = 0.25   # m per step of one foot
+    """Phase durations and step limits. The defaults are those of the hand-written S1/S2 fixtures
+    (src/lomanip_to/config/s1_basket.yaml, s2_trolley.yaml), on which the TO converges: 0.5 s
+    single support, 0.2 s double support, 8 steps carrying S1's box about 1.3 m (0.32 m a step),
+    0.8 s + 0.4 s for each step up onto the box, 1 s to stand up after letting go."""
+
+    step: float = 0.5               # single support per step (s)
+    double_support: float = 0.2     # between steps
+    max_step_length: float = 0.35   # m per step of one foot (horizontal)
+    step_up: float = 0.8            # single support of a step onto another surface (s)
+    step_up_double_support: float = 0.4   # double support after it
     reach: float = 0.8              # move the hands to the object
     grasp: float = 0.4              # hands in contact before the object moves
     manipulate: float = 0.8         # lift / lower
     release: float = 0.4            # hands still in contact after the object rests
-    retract: float = 0.6            # hands back, double support
+    retract: float = 1.0            # hands back, double support (discretize.STAND_UP_TIME)
     weight_shift: float = 0.4       # double support before the first step of a subtask (it starts at rest)
 
 
@@ -126,6 +146,35 @@ def _stance_yaw(left: np.ndarray, right: np.ndarray) -> float:
     return math.atan2(lat[1], lat[0]) - math.pi / 2
 
 
+#: least distance of an intermediate foothold from an object's footprint (m): half the G1 foot's
+#: length plus a margin (the route keeps the mid-feet point clear, but near an object the route's
+#: clearance shrinks and a foot beside it may land on the footprint: S2's walk round the trolley)
+FOOTHOLD_CLEARANCE = 0.12
+
+
+def _clear_of(p: np.ndarray, obstacles: list[Footprint], clearance: float = FOOTHOLD_CLEARANCE) -> np.ndarray:
+    """``p`` (x, y) pushed out of every footprint closer than ``clearance``, across its nearest side."""
+    p = np.asarray(p, float).copy()
+    for _ in range(3):
+        moved = False
+        for fp in obstacles:
+            if fp.distance(p) >= clearance - 1e-9:
+                continue
+            c, s = math.cos(fp.yaw), math.sin(fp.yaw)
+            d = p - np.asarray(fp.centre, float)
+            loc = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+            half = np.asarray(fp.half, float) + clearance
+            inside = np.abs(loc) <= half
+            if inside.all():   # across the side it is nearest to
+                k = int(np.argmin(half - np.abs(loc)))
+                loc[k] = math.copysign(half[k], loc[k] if loc[k] else 1.0)
+            p = np.asarray(fp.centre, float) + np.array([c * loc[0] - s * loc[1], s * loc[0] + c * loc[1]])
+            moved = True
+        if not moved:
+            break
+    return p
+
+
 class _Builder:
     def __init__(self, stance: Stance, timing: Timing, objects: list | None = None) -> None:
         self.t = 0.0
@@ -144,14 +193,17 @@ class _Builder:
         if o is not None and o.primitives:
             self.footprints[oid] = footprint_of(o, position, (0.0, 0.0, yaw))
 
-    def _route(self, targets: dict[str, tuple[np.ndarray, str]]) -> np.ndarray:
-        """Route of the mid-feet point to the targets' round the objects in the way."""
+    def _obstacles(self, targets: dict[str, tuple[np.ndarray, str]]) -> list[Footprint]:
+        """Footprints of the objects the robot neither holds nor stands or steps on."""
         held = {c.object_id for c in self.held.values()} | self.carried
         onto = {targets[f][1] for f in targets} | {self.stance.surface(f) for f in FEET}
-        obstacles = [fp for oid, fp in self.footprints.items() if oid not in held and oid not in onto]
+        return [fp for oid, fp in self.footprints.items() if oid not in held and oid not in onto]
+
+    def _route(self, targets: dict[str, tuple[np.ndarray, str]]) -> np.ndarray:
+        """Route of the mid-feet point to the targets' round the objects in the way."""
         a = 0.5 * (self.stance.left + self.stance.right)
         b = 0.5 * (targets.get("left_foot", (self.stance.left,))[0] + targets.get("right_foot", (self.stance.right,))[0])
-        return shortest_route(a[:2], b[:2], obstacles)
+        return shortest_route(a[:2], b[:2], self._obstacles(targets))
 
     def _feet(self, only: str | None = None) -> dict[str, ContactSpec]:
         out = {}
@@ -171,11 +223,14 @@ class _Builder:
 
     def walk_to(self, targets: dict[str, tuple[np.ndarray, str]], subtask: int,
                 objects: dict[str, ObjectMotion] | None = None) -> None:
-        """Footsteps from the current stance to ``targets`` (foot -> (position, surface))."""
+        """Footsteps from the current stance to ``targets`` (foot -> (position, surface)).
+
+        The number of steps follows the horizontal distance (``max_step_length``); a foot that
+        changes surface (onto S1's box) does so in its last step, a longer one (``step_up``)."""
         tm = self.timing
-        moves = {f: np.linalg.norm(targets[f][0][:2] - self.stance.foot(f)[:2]) + abs(targets[f][0][2] - self.stance.foot(f)[2])
-                 for f in targets}
-        moving = [f for f in FEET if f in targets and (moves[f] > 0.02 or targets[f][1] != self.stance.surface(f))]
+        moves = {f: float(np.linalg.norm(targets[f][0][:2] - self.stance.foot(f)[:2])) for f in targets}
+        moving = [f for f in FEET if f in targets and (moves[f] > 0.02 or targets[f][1] != self.stance.surface(f)
+                                                       or abs(targets[f][0][2] - self.stance.foot(f)[2]) > 0.02)]
         if not moving:
             return
         if not self.phases or self.phases[-1].subtask_index != subtask:
@@ -183,7 +238,8 @@ class _Builder:
             # foot takes a double support before the first swing (without it the TO whipped the hips)
             self.add(tm.weight_shift, subtask, objects=objects)
         route = self._route(targets)
-        n = max(1, math.ceil(max([moves[f] for f in moving] + [route_length(route)]) / tm.max_step_length))
+        obstacles = self._obstacles(targets)
+        n = max(1, math.ceil((max([moves[f] for f in moving] + [route_length(route)]) - 1e-6) / tm.max_step_length))
         starts = {f: self.stance.foot(f).copy() for f in moving}
         half_width = 0.5 * float(np.linalg.norm(self.stance.left[:2] - self.stance.right[:2]))
         yaw0 = _stance_yaw(self.stance.left, self.stance.right)
@@ -194,20 +250,23 @@ class _Builder:
         for i in range(1, n + 1):
             for f in order:
                 other = "right_foot" if f == "left_foot" else "left_foot"
-                self.add(tm.step, subtask, WALKING, stance_foot=other, objects=objects)
+                up = i == n and (targets[f][1] != self.stance.surface(f)
+                                 or abs(targets[f][0][2] - starts[f][2]) > 0.02)
+                self.add(tm.step_up if up else tm.step, subtask, WALKING, stance_foot=other, objects=objects)
                 pos = starts[f] + (i / n) * (targets[f][0] - starts[f])
                 if len(route) > 2 and i < n:   # round an obstacle: beside the route, not on the line
                     yaw = yaw0 + (i / n) * (yaw1 - yaw0)
                     side = 1.0 if f == "left_foot" else -1.0
                     pos[:2] = point_along(route, i / n) + side * half_width * np.array([-math.sin(yaw), math.cos(yaw)])
                 surface = targets[f][1] if i == n else self.stance.surface(f)
-                if i < n:   # intermediate footholds stay on the surface the foot started on
+                if i < n:   # intermediate footholds stay on the surface the foot started on, off objects
                     pos[2] = starts[f][2]
+                    pos[:2] = _clear_of(pos[:2], obstacles)
                 if f == "left_foot":
                     self.stance.left, self.stance.left_surface = pos, surface
                 else:
                     self.stance.right, self.stance.right_surface = pos, surface
-                self.add(tm.double_support, subtask, objects=objects)
+                self.add(tm.step_up_double_support if up else tm.double_support, subtask, objects=objects)
 
 
 def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timing = Timing(),
@@ -220,10 +279,18 @@ def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timi
                  objects)
     out = Schedule()
     tm = timing
-    for sk in subtasks:
+    lift_next: str | None = None
+    for pos, sk in enumerate(subtasks):
         actions = actions_of(sk.prompt)
         if not actions:
             raise ScheduleError(f"subtask {sk.index} ({sk.prompt!r}): no known action (pick, place, push, step on)")
+        if lift_next is not None:
+            # the previous subtask ended with the object grasped, at rest; its lift opens this subtask
+            # (as in the fixtures): the TO's segment boundary is then at the grasp, not mid-lift, and
+            # the lift doubles as the weight shift before the first step
+            b.carried.add(lift_next)
+            b.add(tm.manipulate, sk.index)
+            lift_next = None
         feet = {c.limb: (np.asarray(c.position, float), c.object_id) for c in sk.contacts if c.limb in FEET}
         hands = {c.limb: ContactSpec(c.limb, c.object_id, tuple(np.asarray(c.position, float)),
                                      tuple(np.asarray(c.normal, float))) for c in sk.contacts if c.limb in HANDS}
@@ -256,9 +323,12 @@ def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timi
                 b.add(tm.reach, sk.index, hands=dict(b.held))
                 b.held.update(hands)
                 b.add(tm.grasp, sk.index)
-                b.carried.add(obj)
-                b.add(tm.manipulate, sk.index)
                 kf_time = b.t
+                if "place" in actions or (pos == len(subtasks) - 1 and lifts(sk.prompt)):
+                    b.carried.add(obj)             # lifted here: placed in this subtask, or the plan's end
+                    b.add(tm.manipulate, sk.index)
+                elif pos < len(subtasks) - 1:
+                    lift_next = obj                # the next subtask opens with the lift
             if "place" in actions:
                 if not b.carried:
                     raise ScheduleError(f"subtask {sk.index} ({sk.prompt!r}): nothing is held to place")

@@ -129,10 +129,12 @@ def _hand_contacts(action: str, obj: ObjectGeometry, approach_local: np.ndarray,
             n = sgn * left
             p = c + ext_l * n + rng.uniform(-0.2, 0.2) * ext_a * a
             p[2] = c[2] + h[2] - rng.uniform(0.04, 0.08)
-        else:  # pick / place / grab a box-like object: the two side faces
+        else:  # pick / place / grab a box-like object: the two side faces, in their upper half
+            # (people lift a box by its sides near the top edge; low on the faces the G1 had to
+            # squat with its pelvis 16 cm above the floor to reach S1's 30 cm box)
             n = sgn * left
             p = c + ext_l * n + rng.uniform(-0.25, 0.15) * ext_a * a
-            p[2] = c[2] + rng.uniform(0.0, 0.55) * h[2]
+            p[2] = c[2] + rng.uniform(0.4, 0.75) * h[2]
         pw, _ = _local_to_world(obj, p, n)
         # snap onto the surface (the approach may be a few degrees off the object's axes)
         pw, nw = obj.project_to_surface(pw)
