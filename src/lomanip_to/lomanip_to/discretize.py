@@ -76,6 +76,10 @@ def self_pairs(model: G1Model) -> tuple:
         for arm in (f"{s}_upper_arm_0", f"{s}_forearm_0"):
             for other in (f"{s}_thigh_1", f"{s}_shin_0", f"{s}_shin_1"):
                 pairs.append((idx[arm], idx[other]))
+        # thigh against the torso's lower front in deep squats (hip flexion plus a forward waist)
+        for thigh in (f"{s}_hip_front", f"{s}_hip_roll"):
+            for torso in ("torso_low_0", "torso_low_1"):
+                pairs.append((idx[thigh], idx[torso]))
     legs = ("shin_0", "shin_1", "shin_2", "thigh_1")
     for a in legs:
         for b in legs:

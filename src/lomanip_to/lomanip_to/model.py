@@ -272,6 +272,13 @@ class G1Model:
                                    0.10, "torso"))
         out.append(CollisionSphere("head", jid("waist_pitch_joint"), np.array([0.0, 0.0, 0.45]),
                                    0.09, "head"))
+        # the torso's lower front edge (its mesh starts at the waist joint): in deep squats the thighs
+        # meet it there, 9-18 mm deep on MuJoCo's meshes in S1's placing squat. Radii fitted on a sweep of
+        # squats (tests/to/test_torso_thigh_spheres.py): every mesh contact is caught, the spheres touch
+        # at most 18 mm before the meshes do
+        for i, y in enumerate((0.05, -0.05)):
+            out.append(CollisionSphere(f"torso_low_{i}", jid("waist_pitch_joint"), np.array([0.03, y, 0.04]),
+                                       0.035, "torso"))
         for s in ("left", "right"):
             seg(f"{s}_thigh", f"{s}_hip_yaw_joint", f"{s}_knee_joint", 0.065, 2, f"{s}_thigh", 0.2, 0.75)
             # shin: from the knee joint down, 12 cm apart (the knee link mesh is +-3.6 cm wide, its
@@ -303,6 +310,9 @@ class G1Model:
                                        np.array([0.0, side * 0.049, -0.021]), 0.045, f"{s}_thigh"))
             out.append(CollisionSphere(f"{s}_hip_roll", jid(f"{s}_hip_roll_joint"),
                                        np.array([0.027, 0.0, -0.039]), 0.055, f"{s}_thigh"))
+            # front of the upper thigh at the hip-yaw joint (where S1's squats touched the torso)
+            out.append(CollisionSphere(f"{s}_hip_front", jid(f"{s}_hip_yaw_joint"),
+                                       np.array([0.02, -side * 0.015, 0.0]), 0.045, f"{s}_thigh"))
         return out
 
     # ---------------------------------------------------------------- symbolic kinematics
