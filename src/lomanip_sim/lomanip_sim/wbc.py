@@ -17,6 +17,9 @@ carry the planned grasp/push forces as feed-forward while physics produces the r
 (the hand collision boxes touching the object; nothing is welded). Tasks with PD feedback on the
 plan's own kinematics (evaluated with MuJoCo on the planned configurations): CoM, pelvis
 orientation and position, swing-foot pose, hand position and orientation, posture (all joints).
+Where the dense plan sweeps a hand box into a static scene geom between its knots, the hand
+reference is shifted round it (lomanip_sim.hand_detour); while shifted, that hand's position task
+acts on its own arm only and a torso orientation task keeps the waist on the plan.
 
 Named simplifications: the foot moment reference is not tracked (only the net planned foot force;
 the QP distributes the corner forces); the CoM acceleration term J_dot v is neglected (site terms
@@ -33,7 +36,8 @@ import mujoco
 import numpy as np
 
 from .robot_model import (FOOT_BODIES, FOOT_CONTACT_POINTS, FOOT_SITES, G1_JOINT_NAMES, HAND_COLLISION_HALF_SIZE,
-                          HAND_SITES, PELVIS_BODY)
+                          HAND_SITES, PELVIS_BODY, TORSO_BODY)
+from .hand_detour import Detour, HandBoxProbe, detour, movable_bodies, static_obstacle_geoms
 from .trajectory import FEET, HANDS, Trajectory
 from .world import World
 
@@ -111,6 +115,16 @@ class WbcGains:
     # weight on the hands through the carrying steps: the hands clashed and the robot fell at 5.3 s
     # (6.2 s with it). 0 = the old latch (force from engagement to the end of the contact phase)
     hand_lost_time: float = 0.1
+    # the hand position reference is shifted round static scene geoms (tables, shelves) where the
+    # dense plan sweeps the hand box into them between knots (lomanip_sim.hand_detour); S2's right
+    # hand went 96 mm into the table top at 1.9 s, wedged under it and the robot fell at 2.5 s
+    hand_detour: bool = True
+    hand_detour_margin: float = 0.02  # m, clearance kept by a shifted stretch
+    hand_detour_pre_contact: float = 0.2  # s, a shift is gone this long before the hand's next contact
+    # while shifted, the hand position task drives only its own arm's joints and the torso tracks the
+    # plan's orientation: with the full Jacobian the hand tasks (weight 300) leant the torso back 0.3
+    # rad to lift the hands, the CoM fell 7 cm behind the plan and S2 fell backwards at 2.3 s
+    hand_detour_arm_only: bool = True
 
 
 @dataclass
@@ -126,6 +140,8 @@ class _Refs:
     base_R: np.ndarray
     base_w: np.ndarray
     base_alpha: np.ndarray
+    torso_R: np.ndarray | None = None  # (N,3,3)
+    torso_w: np.ndarray | None = None  # (N,3) world angular velocity
     site_p: dict = field(default_factory=dict)  # limb -> (N,3)
     site_R: dict = field(default_factory=dict)  # limb -> (N,3,3)
     site_v: dict = field(default_factory=dict)  # limb -> (N,6) linear, angular (world)
@@ -164,6 +180,7 @@ class WholeBodyController:
         self.world, self.traj, self.g = world, traj, gains or WbcGains()
         m = self.model = world.model
         self.pelvis = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, PELVIS_BODY)
+        self.torso = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, TORSO_BODY)
         self.bdof = int(m.jnt_dofadr[m.body_jntadr[self.pelvis]])
         self.bq = int(m.jnt_qposadr[m.body_jntadr[self.pelvis]])
         if not np.array_equal(world.joint_dof_adr, np.arange(self.bdof + 6, self.bdof + NV)):
@@ -184,6 +201,12 @@ class WholeBodyController:
         self._jdr = np.zeros((3, m.nv))
         self._M = np.zeros((m.nv, m.nv))
         self._scratch = mujoco.MjData(m)
+        self.detours: list[Detour] = []
+        self._detoured = {l: np.zeros(traj.n, bool) for l in HANDS}
+        # columns of a hand's own arm (shoulder to wrist) in the QP's qdd (6 base dofs first)
+        self._arm_cols = {l: np.array([6 + j for j, nm in enumerate(G1_JOINT_NAMES) if nm.startswith(l.split("_")[0])
+                                       and any(k in nm for k in ("shoulder", "elbow", "wrist"))])
+                          for l in HANDS}  # fmt: skip
         self.refs = self._precompute_refs()
         self._hand_stiff = {l: self._near_contact(l) for l in HANDS}
         self._pyramids: dict = {}
@@ -200,7 +223,7 @@ class WholeBodyController:
         tr, m, d = self.traj, self.model, self._scratch
         n = tr.n
         com, com_v = np.zeros((n, 3)), np.zeros((n, 3))
-        base_R, base_w = np.zeros((n, 3, 3)), np.zeros((n, 3))
+        base_R, base_w, torso_R, torso_w = np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 3))
         sp = {l: np.zeros((n, 3)) for l in self.sites}
         sR = {l: np.zeros((n, 3, 3)) for l in self.sites}
         sv = {l: np.zeros((n, 6)) for l in self.sites}
@@ -216,6 +239,9 @@ class WholeBodyController:
             mujoco.mj_jacSubtreeCom(m, d, jcom, self.pelvis)
             com_v[i] = jcom @ d.qvel
             base_R[i] = d.xmat[self.pelvis].reshape(3, 3)
+            torso_R[i] = d.xmat[self.torso].reshape(3, 3)
+            mujoco.mj_jacBody(m, d, self._jp, self._jr, self.torso)
+            torso_w[i] = self._jr @ d.qvel
             base_w[i] = base_R[i] @ tr.qvel(i)[3:6]
             for l, sid in self.site_id.items():
                 sp[l][i] = d.site_xpos[sid]
@@ -224,14 +250,38 @@ class WholeBodyController:
                 sv[l][i, :3] = self._jp @ d.qvel
                 sv[l][i, 3:] = self._jr @ d.qvel
         t = tr.t
+        root = int(m.body_rootid[self.pelvis])
+        obstacles = static_obstacle_geoms(m, root) if self.g.hand_detour else []
+        movable = self._movable_poses(movable_bodies(m, root)) if obstacles else {}
         for limb in HANDS:  # the plan's hand is a point on the surface; the sim's hand is a box
             sp[limb] = sp[limb] + self._hand_offsets(limb, sR[limb])
+            if obstacles and self.hand_geom[limb] >= 0:
+                probe = HandBoxProbe(m, self.hand_geom[limb], self.site_id[limb], obstacles, movable)
+                shifted, found = detour(limb, t, sp[limb], sR[limb], self._in_contact(limb), probe,
+                                        self.g.hand_detour_margin, self.g.hand_detour_pre_contact)
+                self._detoured[limb] = np.any(np.abs(shifted - sp[limb]) > 1e-9, axis=1)
+                sp[limb] = shifted
+                self.detours.extend(found)
             sv[limb][:, :3] = np.gradient(sp[limb], t, axis=0)
         grad = lambda a: np.gradient(a, t, axis=0)  # noqa: E731
         return _Refs(com=com, com_v=com_v, com_a=grad(com_v), base_p=tr.base_pos.copy(), base_v=tr.base_linvel.copy(),
                      base_a=grad(tr.base_linvel), base_R=base_R, base_w=base_w, base_alpha=grad(base_w),
+                     torso_R=torso_R, torso_w=torso_w,
                      site_p=sp, site_R=sR, site_v=sv, site_a={l: grad(v) for l, v in sv.items()},
                      qdd=grad(tr.qd))  # fmt: skip
+
+    def _movable_poses(self, bodies: list[int]) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        """body -> (N,3) positions, (N,4) wxyz quaternions along the grid: planned, or the initial pose."""
+        m, tr, out = self.model, self.traj, {}
+        for b in bodies:
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b)
+            oid = next((o for o, so in self.world.objects.items() if so.body_name == name), None)
+            if oid in tr.objects:
+                out[b] = (np.asarray(tr.objects[oid][0]), np.asarray(tr.objects[oid][1]))
+            else:
+                q0 = m.qpos0[m.jnt_qposadr[m.body_jntadr[b]] :][:7]
+                out[b] = (np.repeat(q0[None, :3], tr.n, 0), np.repeat(q0[None, 3:], tr.n, 0))
+        return out
 
     def _hand_offsets(self, limb: str, R_hand: np.ndarray) -> np.ndarray:
         """(N,3) shift of the hand target along the contact normal by the hand box's support distance.
@@ -275,6 +325,15 @@ class WholeBodyController:
                 rows = np.array([t1 - mu * n, -t1 - mu * n, t2 - mu * n, -t2 - mu * n, n])
             self._pyramids[key] = rows
         return rows
+
+    def _in_contact(self, limb: str) -> np.ndarray:
+        """(N,) bool: the plan has this limb in a contact phase."""
+        tr = self.traj
+        out = np.zeros(tr.n, bool)
+        for ph in tr.phases:
+            if limb in ph.contacts:
+                out |= (tr.t >= ph.start) & (tr.t <= ph.end)
+        return out
 
     def _near_contact(self, limb: str) -> np.ndarray:
         """(N,) bool: the hand is in a contact phase or within ``hand_stiff_window`` of one."""
@@ -407,7 +466,12 @@ class WholeBodyController:
                 stiff = self._hand_stiff[limb][i if s < 0.5 else i + 1]
                 kp, kd, wh = (g.hand_kp, g.hand_kd, g.w_hand) if stiff else (g.free_hand_kp, g.free_hand_kd, g.w_free_hand)
                 b = dlerp(R_.site_a[limb])[:3] + kp * e + kd * (dlerp(R_.site_v[limb])[:3] - vel[:3]) - jdv[:3]
-                task(J[:3], b, wh)
+                Jh = J[:3]
+                if g.hand_detour_arm_only and (self._detoured[limb][i] or self._detoured[limb][i + 1]):
+                    # a detour is the arm's own correction: the hand task may not move the body for it
+                    Jh = np.zeros_like(Jh)
+                    Jh[:, self._arm_cols[limb]] = J[:3, self._arm_cols[limb]]
+                task(Jh, b, wh)
                 eo = _rot_error(R_.site_R[limb][i if s < 0.5 else i + 1], Rm)
                 bo = kp * eo + kd * (dlerp(R_.site_v[limb])[3:] - vel[3:]) - jdv[3:]
                 w_ori = g.w_hand_ori if stiff else g.w_free_hand_ori
@@ -449,6 +513,14 @@ class WholeBodyController:
         pp = data.xpos[self.pelvis]
         b = dlerp(R_.base_a) + g.base_kp * (lerp(R_.base_p) - pp) + g.base_kd * (dlerp(R_.base_v) - Jp @ v)
         task(Jp, b, g.w_base_pos)
+        # --- torso orientation, while a hand detours: its arm-only hand task leaves the waist free
+        if g.hand_detour_arm_only and any(self._detoured[l][i] or self._detoured[l][i + 1] for l in HANDS):
+            mujoco.mj_jacBody(m, data, self._jp, self._jr, self.torso)
+            Jt = self._jr[:, dofs]
+            Rt = data.xmat[self.torso].reshape(3, 3)
+            e_t = _rot_error(R_.torso_R[i if s < 0.5 else i + 1], Rt)
+            b = g.base_kp * e_t + g.base_kd * (dlerp(R_.torso_w) - Jt @ v)
+            task(Jt, b, g.w_base_ori)
         # --- posture
         q_ref = lerp(tr.q)
         b = dlerp(R_.qdd) + g.posture_kp * (q_ref - qj) + g.posture_kd * (dlerp(tr.qd) - vj)
