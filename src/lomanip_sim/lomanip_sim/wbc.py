@@ -35,6 +35,7 @@ import daqp
 import mujoco
 import numpy as np
 
+from . import frames
 from .robot_model import (FOOT_BODIES, FOOT_CONTACT_POINTS, FOOT_SITES, G1_JOINT_NAMES, HAND_COLLISION_HALF_SIZE,
                           HAND_SITES, PELVIS_BODY, TORSO_BODY)
 from .hand_detour import Detour, HandBoxProbe, detour, movable_bodies, static_obstacle_geoms
@@ -125,6 +126,10 @@ class WbcGains:
     # plan's orientation: with the full Jacobian the hand tasks (weight 300) leant the torso back 0.3
     # rad to lift the hands, the CoM fell 7 cm behind the plan and S2 fell backwards at 2.3 s
     hand_detour_arm_only: bool = True
+    # a hand's contact normal turns with its object's planned orientation (the phase gives it at the
+    # start, the TO turns it with the object): S2's box yaws -1.6 rad in the carry and the fixed normal
+    # put the hand offsets (3-5 cm) along the faces instead of out of them
+    hand_normal_follows_object: bool = True
 
 
 @dataclass
@@ -202,6 +207,7 @@ class WholeBodyController:
         self._M = np.zeros((m.nv, m.nv))
         self._scratch = mujoco.MjData(m)
         self.detours: list[Detour] = []
+        self._object_turn: dict[str, np.ndarray] = {}  # object -> (N,3,3) planned rotation since t = 0
         self._detoured = {l: np.zeros(traj.n, bool) for l in HANDS}
         # columns of a hand's own arm (shoulder to wrist) in the QP's qdd (6 base dofs first)
         self._arm_cols = {l: np.array([6 + j for j, nm in enumerate(G1_JOINT_NAMES) if nm.startswith(l.split("_")[0])
@@ -298,17 +304,31 @@ class WholeBodyController:
             c = ph.contacts.get(limb)
             if c is None:
                 continue
-            n = np.asarray(c.normal, float) / max(np.linalg.norm(c.normal), 1e-9)
+            normals = self._contact_normals(c)
             w = np.clip(np.minimum(1.0 - (ph.start - tr.t) / g.hand_offset_ramp, 1.0 - (tr.t - ph.end) / g.hand_release_ramp),
                         0.0, 1.0)  # fmt: skip
             # approach from outside: extra clearance until shortly before contact, gone just after it
             clear = g.hand_clearance * np.clip((ph.start + 0.1 - tr.t) / 0.2, 0.0, 1.0)
             for i in np.nonzero(w > 0)[0]:
+                n = normals[i]
                 d = float(np.abs(R_hand[i].T @ n) @ half) + g.hand_squeeze + clear[i]
                 cand = w[i] * d * n
                 if np.linalg.norm(cand) > np.linalg.norm(off[i]):
                     off[i] = cand
         return off
+
+    def _contact_normals(self, c) -> np.ndarray:
+        """(N,3) unit outward normal of contact ``c`` along the grid, turned with its object's planned
+        orientation relative to the plan's start (the TO does the same with its contact normals)."""
+        tr = self.traj
+        n = np.asarray(c.normal, float) / max(np.linalg.norm(c.normal), 1e-9)
+        if not self.g.hand_normal_follows_object or c.object_id not in tr.objects:
+            return np.repeat(n[None], tr.n, 0)
+        rel = self._object_turn.get(c.object_id)
+        if rel is None:
+            R = np.array([frames.quat_to_matrix(q) for q in tr.objects[c.object_id][1]])
+            rel = self._object_turn[c.object_id] = R @ R[0].T
+        return rel @ n
 
     def _pyramid(self, normal, mu: float) -> np.ndarray:
         """(5,3) rows of a linearised friction cone: 4 tangent rows (<= 0) and the normal; cached per normal."""
