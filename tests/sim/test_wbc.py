@@ -11,7 +11,7 @@ import pytest
 from to_cases import simulation
 
 from lomanip_sim.robot_model import FOOT_SITES
-from lomanip_sim.wbc import NJ, WholeBodyController, _rot_error
+from lomanip_sim.wbc import NJ, WbcGains, WholeBodyController, _rot_error
 
 
 def _track(sim, tr, seconds, every=10):
@@ -154,3 +154,24 @@ def test_hand_force_stops_when_the_object_is_lost():
     assert "left_hand" in tr.phase_at(wbc.status.t_ref).contacts  # still a planned contact
     assert np.linalg.norm(wbc.last_forces["left_hand"]) < 1e-6
     assert np.linalg.norm(wbc.last_forces["right_hand"]) < 1e-6
+
+
+def test_grasp_normal_turns_with_the_object():
+    """A hand's contact normal (the direction of its grasp offset) turns with the object's planned
+    orientation, as the TO's normals do: S2's box yaws 1.6 rad in the carry, and a fixed normal put
+    the hand offsets along the box's faces instead of out of them."""
+    import dataclasses
+
+    from lomanip_sim.frames import yaw_to_quat
+
+    sim, tr = simulation("case_lift_box")
+    pos, _quat = tr.objects["box"]
+    yaw = np.linspace(0.0, np.pi / 2, tr.n)  # the box turns a quarter round over the plan
+    turned = dataclasses.replace(tr, objects={"box": (pos, np.array([yaw_to_quat(a) for a in yaw]))})
+    contact = next(ph.contacts["left_hand"] for ph in tr.phases if "left_hand" in ph.contacts)
+    n0 = np.asarray(contact.normal, float) / np.linalg.norm(contact.normal)
+    normals = WholeBodyController(sim.world, turned)._contact_normals(contact)
+    assert np.allclose(normals[0], n0, atol=1e-9)
+    assert np.allclose(normals[-1], [-n0[1], n0[0], n0[2]], atol=1e-6)  # n0 turned +90 deg about z
+    fixed = WholeBodyController(sim.world, turned, WbcGains(hand_normal_follows_object=False))
+    assert np.allclose(fixed._contact_normals(contact), n0)
