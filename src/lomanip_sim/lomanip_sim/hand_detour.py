@@ -166,7 +166,7 @@ def detour(limb: str, t: np.ndarray, pos: np.ndarray, rot: np.ndarray, in_contac
         best = None  # (cost, amplitude, direction, clearance, profile, ramp)
         for ramp in ramps:
             lo, hi = max(t[ia] - ramp, t_lo), min(t[ib] + ramp, t_hi)
-            eff = min(t[ia] - lo, hi - t[ib])
+            eff = max(float(min(t[ia] - lo, hi - t[ib])), 1e-3)  # a stretch right after a contact: no ramp in
             s = _bump(t, t[ia], t[ib], lo, hi)
             win = np.flatnonzero(s > 0)
             order = win[np.argsort(clear[win])]  # most penetrating samples first: early rejection
