@@ -54,3 +54,35 @@ def test_a_carried_box_below_the_floor_counts_as_penetration(g1):
     total, worst, k = penetration_per_knot(g1, data, res)
     assert worst == pytest.approx(0.03, abs=1e-9) and k == 1
     assert total[0] < 1e-9 and total[1] > 0.03 and total[2] > 0.0
+
+
+def test_an_object_short_of_its_placement_goal_fails_the_check(g1):
+    """Goals are costs: a converged plan can leave the object where it was (every S2 and demo push
+    did, 0.25-0.5 m short). The check reads the object's pose at the goal's time."""
+    from lomanip_to.checks import TOL, placement_error
+    from lomanip_to.discretize import ProblemData
+    from lomanip_to.fixtures import load_problem
+
+    prob = load_problem("case_lift_box", model=g1)
+    assert prob.placement_goals
+    data = ProblemData(prob, g1)
+    g = prob.placement_goals[0]
+    K = len(data.grid.t)
+    at_goal = np.tile(np.r_[g.position, 0.0, 0.0, g.yaw], (K, 1))
+    res = SimpleNamespace(t_knots=data.grid.t, object_pose_knots={g.object_id: at_goal})
+    dp, dyaw, oid, _ = placement_error(data, res)
+    assert dp < 1e-9 and dyaw < 1e-9 and oid == g.object_id
+    o = prob.object(g.object_id)
+    stayed = np.tile(np.r_[o.position, o.rpy()], (K, 1))
+    res.object_pose_knots = {g.object_id: stayed}
+    dp, _, oid, _ = placement_error(data, res)
+    assert dp == pytest.approx(np.linalg.norm(np.subtract(o.position, g.position))) and dp > TOL["placement"]
+
+
+def test_the_to_wheels_resist_rolling_as_the_sims_do():
+    """The TO's rolling objects may take the sim trolley's wheel resistance, no more (else the plan
+    stops the trolley in a way MuJoCo cannot, or, at 0, cannot stop it at all)."""
+    from lomanip_sim.scenario import S2TrolleyParams
+    from lomanip_to.discretize import WHEEL_ROLLING_RESISTANCE
+
+    assert WHEEL_ROLLING_RESISTANCE == S2TrolleyParams().wheel_rolling_resistance > 0

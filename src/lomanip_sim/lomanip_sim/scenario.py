@@ -104,6 +104,11 @@ class S2TrolleyParams(CommonParams):
     trolley_handle_height: float = 0.85
     wheel_radius: float = 0.06
     wheel_mass: float = 0.3
+    #: rolling resistance per wheel (N): the wheel hinge's frictionloss is this x wheel_radius. The
+    #: TO allows the same longitudinal force per support corner (lomanip_to.discretize), so the trolley
+    #: it plans can be brought to rest by its wheels: the hands only push (a friction contact on the
+    #: handle), and a free-rolling trolley could only be stopped by pulling
+    wheel_rolling_resistance: float = 1.5
     caster_trail: float = 0.04
     camera_position: Vec3 = (2.9, 1.7, 1.9)
     camera_target: Vec3 = (0.7, -0.5, 0.6)
@@ -115,7 +120,7 @@ SCENARIOS: dict[str, type[CommonParams]] = {S1BasketParams.name: S1BasketParams,
 # Keys that must be > 0 (masses, sizes, ...) and >= 0 (frictions, offsets).
 _POSITIVE_SUFFIXES = ("_mass", "_size", "timestep", "camera_width", "camera_height", "camera_fovy", "_radius",
                       "_wall", "_handle_height")  # fmt: skip
-_NON_NEGATIVE_SUFFIXES = ("_friction", "_setback", "_trail")
+_NON_NEGATIVE_SUFFIXES = ("_friction", "_setback", "_trail", "_resistance")
 
 
 def default_scenarios_path() -> Path:

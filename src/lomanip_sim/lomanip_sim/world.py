@@ -327,6 +327,7 @@ def _add_trolley(spec, p: S2TrolleyParams) -> None:
         j.type = mujoco.mjtJoint.mjJNT_HINGE
         j.axis = [0, 1, 0]
         j.damping = [0.002, 0.0, 0.0]
+        j.frictionloss = p.wheel_rolling_resistance * r  # rolling resistance (see S2TrolleyParams)
         _add_geom(wb, f"{name}_geom", "cylinder", (r, wheel_half_w), quat=_Q_X90, rgba=(0.1, 0.1, 0.1, 1),
                   mass=p.wheel_mass, friction=1.0)  # fmt: skip
 

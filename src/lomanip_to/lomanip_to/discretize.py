@@ -97,6 +97,11 @@ TORQUE_MARGIN = 0.8
 #: least lateral distance (m) of the sole centres in the base's frame (the hips are 0.24 m apart):
 #: keeps the legs from crossing, including between knots where the sphere pairs are not checked
 FEET_MIN_LATERAL = 0.10
+#: longitudinal force (N) a rolling object's wheel (support corner) may take: rolling resistance, the
+#: same as the sim's trolley wheels (lomanip_sim S2TrolleyParams.wheel_rolling_resistance, tested).
+#: With 0 (free rolling) no push was feasible: the hands push through a friction contact and cannot pull,
+#: so nothing could stop the trolley at its goal, and every push converged with the trolley unmoved
+WHEEL_ROLLING_RESISTANCE = 1.5
 #: time (s) the nominal takes to stand up after the hands let go at the end of a task or segment
 STAND_UP_TIME = 1.0
 
@@ -208,6 +213,8 @@ class ProblemData:
                            for h in HANDS if (c := self.contact(k, h)) is not None)
                 if not held or k1 <= k0:
                     continue
+                if self._pushed_stretch(X, oid, k0, k1):
+                    continue
                 rel0 = _relative_to_base(X[k0], traj[k0])
                 rel1 = _relative_to_base(X[k1], traj[k1])
                 rel1[5] = rel0[5] + math.remainder(rel1[5] - rel0[5], 2 * math.pi)
@@ -227,6 +234,27 @@ class ProblemData:
                         pose[:3] = pc[:3] + rpy_to_rot(pc[3:]) @ off[:3]
                         pose[5] = pc[5] + off[3]
                         self.obj_nom[other][k] = pose
+
+    def _pushed_stretch(self, X: np.ndarray, oid: str, k0: int, k1: int) -> bool:
+        """A held object that rolls or slides on its support towards its goal while the base
+        nominal stays put (the keyframe is the grasp, the push comes after it): the base walks with
+        the object instead, to the end of the subtask. Returns whether it did.
+
+        Why: the object then moved 0.5 m in the nominal while the base stood at the handle, and
+        every S2 and demo push converged with the trolley never moving (hands at 0 N)."""
+        modes = {self.obj_mode(k, oid) for k in range(k0 + 1, k1 + 1)}
+        if not modes <= {"rolling", "supported"}:
+            return False
+        traj = self.obj_nom[oid]
+        d_obj = traj[k1, :2] - traj[k0, :2]
+        if np.linalg.norm(d_obj) < 0.05 or np.linalg.norm(X[k1, :2] - X[k0, :2]) > 0.5 * np.linalg.norm(d_obj):
+            return False
+        sub = self.prob.phases[self.grid.phase[k0]].subtask_index
+        for k in range(k0 + 1, self.grid.K):
+            if self.prob.phases[self.grid.phase[k]].subtask_index != sub:
+                break
+            X[k, :2] += traj[min(k, k1), :2] - traj[k0, :2]
+        return True
 
     def obj_mode(self, k: int, oid: str) -> str:
         ph = self.prob.phases[self.grid.phase[k]]
@@ -583,6 +611,9 @@ class ProblemData:
                 rows(f"o{j} above the floor", k, 0 if mode == "free" else -INF, INF)
                 if mode != "rolling":
                     rows(f"o{j} rolling: no longitudinal wheel force", k, -INF, INF)
+                else:  # up to the wheels' rolling resistance: the hands cannot pull to stop it
+                    f_rr = WHEEL_ROLLING_RESISTANCE / (m.mass * 9.81)
+                    rows(f"o{j} rolling: no longitudinal wheel force", k, -f_rr, f_rr)
                     rows(f"o{j} nonholonomic: no lateral slip", k, -INF, INF)
                 if mode != "attached":
                     rows(f"o{j} attachment", k, -INF, INF)
@@ -626,8 +657,10 @@ class ProblemData:
                 sp("w_kfb_z", w["w_kfb_z"])
                 sp("w_kfb_th", w["w_kfb_th"])
             kfs = kf_sub.get(ph.subtask_index)
+            # eq. (2) pulls the feet to the keyframe's stance on the way to it, not after it: after a
+            # grasp keyframe the feet walk with a pushed trolley (held back here, S2 never pushed)
             if (opt.use_keyframe_foot_cost and kfs is not None and kfs.desired_foot_xy is not None
-                    and ph.phase_type == STANCE):
+                    and ph.phase_type == STANCE and t[k] <= prob.keyframe_time(kfs) + 1e-9):
                 sp("w_kff", w["w_kff"])
                 sp("foot_des", np.asarray(kfs.desired_foot_xy, float))
             for f in FEET:
@@ -682,8 +715,32 @@ class ProblemData:
                 W0[W[f"o{j}_pose"], k] = self.obj_nom[oid][k]
                 if k > 0 and self.obj_mode(k, oid) != "fixed" and self.obj_mode(k - 1, oid) != "fixed":
                     W0[W[f"o{j}_vel"], k] = (self.obj_nom[oid][k] - self.obj_nom[oid][k - 1]) / (t[k] - t[k - 1])
+        self._pushing_forces(W0, W)
         W0 = np.clip(W0, lbw, ubw)
         return lbw, ubw, lbg, ubg, Pm, W0
+
+    def _pushing_forces(self, W0: np.ndarray, W) -> None:
+        """Warm-start forces of an object that rolls or slides while hands hold it: its supports
+        carry its weight, the hands give its nominal horizontal acceleration (Newton's third law on
+        the robot's side).
+
+        Why: with zero forces the nominal push violated the object's dynamics by 2 (scaled), and
+        ipopt restored feasibility by stopping the object: every push converged with the trolley
+        where it started and the hands at 0 N."""
+        G = 9.81
+        t, mg = self.grid.t, self.model.mass * G
+        for k in range(self.grid.K - 1):
+            for oid, j in self.midx.items():
+                if self.obj_mode(k, oid) not in ("rolling", "supported"):
+                    continue
+                mo = self._lumped(k, oid)[0]
+                W0[W[f"o{j}_us"], k] = np.tile([0.0, 0.0, mo * G / (4 * mg)], 4)
+                hands = [h for h in HANDS if (c := self.contact(k, h)) is not None and c.object_id == oid]
+                if not hands:
+                    continue
+                dv = (W0[W[f"o{j}_vel"], k + 1][:2] - W0[W[f"o{j}_vel"], k][:2]) / (t[k + 1] - t[k])
+                for h in hands:
+                    W0[W[f"u_{h}"], k][:2] = -mo * dv / (len(hands) * mg)
 
     # ------------------------------------------------------------------ helpers
     def _surface(self, c):
