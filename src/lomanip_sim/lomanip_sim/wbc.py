@@ -38,6 +38,7 @@ import numpy as np
 from . import frames
 from .robot_model import (FOOT_BODIES, FOOT_CONTACT_POINTS, FOOT_SITES, G1_JOINT_NAMES, HAND_COLLISION_HALF_SIZE,
                           HAND_SITES, PELVIS_BODY, TORSO_BODY)
+from .hand_approach import approach_lift
 from .hand_detour import Detour, HandBoxProbe, detour, movable_bodies, static_obstacle_geoms
 from .trajectory import FEET, HANDS, Trajectory
 from .world import World
@@ -106,6 +107,12 @@ class WbcGains:
     # caught on that edge and the arm pushed the robot backwards (fell at 2.6 s)
     hand_offset_ramp: float = 0.8
     hand_release_ramp: float = 0.3  # s over which the offset goes after a hand contact ends
+    # the offset's ramps (and the approach clearance's) are smoothsteps, not linear: a linear ramp
+    # steps the hand reference velocity where it starts, the acceleration reference spikes and the
+    # hand tasks (full Jacobian) drag the whole body with it; in the push of make demo both hands'
+    # offsets (6-7 cm along (-0.8, 0, 0.6)) started at 1.8 s and the QP took the CoM back at -2.5
+    # m/s^2 for 30 ms, 3.3 cm in front of the heels: the robot fell backwards at 2.5 s
+    hand_offset_smooth: bool = True
     hand_squeeze: float = -0.005  # m: hand target this far inside the surface (negative = into the object)
     hand_clearance: float = 0.02  # m, extra distance from the surface while approaching a contact
     hand_engage_error: float = 0.06  # m: planned hand force is applied once the hand got this close
@@ -130,6 +137,22 @@ class WbcGains:
     # start, the TO turns it with the object): S2's box yaws -1.6 rad in the carry and the fixed normal
     # put the hand offsets (3-5 cm) along the faces instead of out of them
     hand_normal_follows_object: bool = True
+    # before a hand contact the reference is lifted along the contact normal where the hand box would
+    # go into the scene (lomanip_sim.hand_approach): the push's plan brings both hands up through the
+    # trolley's handle bar (up to 62 mm) to grasp it from behind and above
+    hand_approach: bool = True
+    hand_approach_margin: float = 0.01  # m, kept from the scene by the lifted approach
+    # the lift is tilted towards up by this much (normal + k up, normalised) on faces that look up:
+    # along the handle's normal (-0.8, 0, 0.6) the lift pulled the left hand back into the torso
+    hand_approach_up: float = 1.0
+    hand_approach_spread: float = 0.4  # s, half-width of the smooth kernel that spreads each sample's lift
+    hand_approach_taper: float = 0.4  # s over which the lift goes to zero (0.1 s: 230 N landing on the bar)
+    hand_approach_post: float = 0.2  # s after the contact start at which the lift is gone (force still ~0)
+    # while a hand's grasp offset is active (approach ramp, contact, release) its position task acts
+    # on its own arm only and the torso tracks the plan's (as in a detour): with the full Jacobian
+    # the offsets (6-7 cm back and up, off the planned posture) pulled the whole body back; the push
+    # of make demo lost its CoM 3 cm in front of the heels and fell backwards at 2.5 s
+    hand_arm_only_near_contact: bool = True
 
 
 @dataclass
@@ -156,6 +179,11 @@ class _Refs:
 
 def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def _smoothstep(u: np.ndarray) -> np.ndarray:
+    """C1 ramp on [0, 1]: no velocity step where a ramp starts or ends."""
+    return u * u * (3.0 - 2.0 * u)
 
 
 def _rot_error(R_des: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -209,6 +237,8 @@ class WholeBodyController:
         self.detours: list[Detour] = []
         self._object_turn: dict[str, np.ndarray] = {}  # object -> (N,3,3) planned rotation since t = 0
         self._detoured = {l: np.zeros(traj.n, bool) for l in HANDS}
+        self._arm_only = {l: np.zeros(traj.n, bool) for l in HANDS}  # hand position task on its own arm only
+        self.approach_lifts: list[tuple[str, float, float]] = []  # (hand, contact start, largest lift in m)
         # columns of a hand's own arm (shoulder to wrist) in the QP's qdd (6 base dofs first)
         self._arm_cols = {l: np.array([6 + j for j, nm in enumerate(G1_JOINT_NAMES) if nm.startswith(l.split("_")[0])
                                        and any(k in nm for k in ("shoulder", "elbow", "wrist"))])
@@ -258,14 +288,31 @@ class WholeBodyController:
         t = tr.t
         root = int(m.body_rootid[self.pelvis])
         obstacles = static_obstacle_geoms(m, root) if self.g.hand_detour else []
-        movable = self._movable_poses(movable_bodies(m, root)) if obstacles else {}
+        mov_bodies = movable_bodies(m, root)
+        movable = self._movable_poses(mov_bodies) if obstacles or (self.g.hand_approach and mov_bodies) else {}
         for limb in HANDS:  # the plan's hand is a point on the surface; the sim's hand is a box
-            sp[limb] = sp[limb] + self._hand_offsets(limb, sR[limb])
+            off = self._hand_offsets(limb, sR[limb])
+            sp[limb] = sp[limb] + off
+            if self.g.hand_approach and movable and self.hand_geom[limb] >= 0:
+                probe = HandBoxProbe(m, self.hand_geom[limb], self.site_id[limb], static_obstacle_geoms(m, root), movable)
+                for start, c in self._contact_starts(limb):
+                    normals = self._contact_normals(c)
+                    if self.g.hand_approach_up > 0:  # tilt the lift towards up (less arm mass moved back), faces that look up
+                        up = np.where(normals[:, 2:3] > 0.3, self.g.hand_approach_up * np.array([0.0, 0.0, 1.0]), 0.0)
+                        normals = (normals + up) / np.linalg.norm(normals + up, axis=1, keepdims=True)
+                    lift = approach_lift(t, sp[limb], sR[limb], normals, start, probe, window=self.g.hand_offset_ramp,
+                                         margin=self.g.hand_approach_margin, spread=self.g.hand_approach_spread,
+                                         taper=self.g.hand_approach_taper, post=self.g.hand_approach_post)  # fmt: skip
+                    sp[limb] = sp[limb] + lift[:, None] * normals
+                    self.approach_lifts.append((limb, start, float(lift.max())))
+            if self.g.hand_arm_only_near_contact:
+                self._arm_only[limb] |= np.linalg.norm(off, axis=1) > 1e-9
             if obstacles and self.hand_geom[limb] >= 0:
                 probe = HandBoxProbe(m, self.hand_geom[limb], self.site_id[limb], obstacles, movable)
                 shifted, found = detour(limb, t, sp[limb], sR[limb], self._in_contact(limb), probe,
                                         self.g.hand_detour_margin, self.g.hand_detour_pre_contact)
                 self._detoured[limb] = np.any(np.abs(shifted - sp[limb]) > 1e-9, axis=1)
+                self._arm_only[limb] |= self._detoured[limb]
                 sp[limb] = shifted
                 self.detours.extend(found)
             sv[limb][:, :3] = np.gradient(sp[limb], t, axis=0)
@@ -282,11 +329,31 @@ class WholeBodyController:
         for b in bodies:
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b)
             oid = next((o for o, so in self.world.objects.items() if so.body_name == name), None)
-            if oid in tr.objects:
-                out[b] = (np.asarray(tr.objects[oid][0]), np.asarray(tr.objects[oid][1]))
+            if oid in tr.objects:  # the plan's pose is the object's CoM frame (the TO's), the body's origin is not
+                P, Q = np.asarray(tr.objects[oid][0]), np.asarray(tr.objects[oid][1])
+                R = np.array([frames.quat_to_matrix(q) for q in Q])
+                out[b] = (P - R @ self._com_offset(b), Q)
             else:
                 q0 = m.qpos0[m.jnt_qposadr[m.body_jntadr[b]] :][:7]
                 out[b] = (np.repeat(q0[None, :3], tr.n, 0), np.repeat(q0[None, 3:], tr.n, 0))
+        return out
+
+    def _com_offset(self, body: int) -> np.ndarray:
+        """CoM of a free body's subtree (wheels included) in its own frame, at the model's qpos0."""
+        m = self.model
+        d = mujoco.MjData(m)
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        return d.xmat[body].reshape(3, 3).T @ (d.subtree_com[body] - d.xpos[body])
+
+    def _contact_starts(self, limb: str) -> list:
+        """(start time, contact) of each contact of ``limb`` that follows a phase without it."""
+        out, prev = [], None
+        for ph in self.traj.phases:
+            c = ph.contacts.get(limb)
+            if c is not None and prev is None:
+                out.append((ph.start, c))
+            prev = c
         return out
 
     def _hand_offsets(self, limb: str, R_hand: np.ndarray) -> np.ndarray:
@@ -308,7 +375,10 @@ class WholeBodyController:
             w = np.clip(np.minimum(1.0 - (ph.start - tr.t) / g.hand_offset_ramp, 1.0 - (tr.t - ph.end) / g.hand_release_ramp),
                         0.0, 1.0)  # fmt: skip
             # approach from outside: extra clearance until shortly before contact, gone just after it
-            clear = g.hand_clearance * np.clip((ph.start + 0.1 - tr.t) / 0.2, 0.0, 1.0)
+            u = np.clip((ph.start + 0.1 - tr.t) / 0.2, 0.0, 1.0)
+            if g.hand_offset_smooth:
+                w, u = _smoothstep(w), _smoothstep(u)
+            clear = g.hand_clearance * u
             for i in np.nonzero(w > 0)[0]:
                 n = normals[i]
                 d = float(np.abs(R_hand[i].T @ n) @ half) + g.hand_squeeze + clear[i]
@@ -487,7 +557,7 @@ class WholeBodyController:
                 kp, kd, wh = (g.hand_kp, g.hand_kd, g.w_hand) if stiff else (g.free_hand_kp, g.free_hand_kd, g.w_free_hand)
                 b = dlerp(R_.site_a[limb])[:3] + kp * e + kd * (dlerp(R_.site_v[limb])[:3] - vel[:3]) - jdv[:3]
                 Jh = J[:3]
-                if g.hand_detour_arm_only and (self._detoured[limb][i] or self._detoured[limb][i + 1]):
+                if g.hand_detour_arm_only and (self._arm_only[limb][i] or self._arm_only[limb][i + 1]):
                     # a detour is the arm's own correction: the hand task may not move the body for it
                     Jh = np.zeros_like(Jh)
                     Jh[:, self._arm_cols[limb]] = J[:3, self._arm_cols[limb]]
@@ -534,7 +604,7 @@ class WholeBodyController:
         b = dlerp(R_.base_a) + g.base_kp * (lerp(R_.base_p) - pp) + g.base_kd * (dlerp(R_.base_v) - Jp @ v)
         task(Jp, b, g.w_base_pos)
         # --- torso orientation, while a hand detours: its arm-only hand task leaves the waist free
-        if g.hand_detour_arm_only and any(self._detoured[l][i] or self._detoured[l][i + 1] for l in HANDS):
+        if g.hand_detour_arm_only and any(self._arm_only[l][i] or self._arm_only[l][i + 1] for l in HANDS):
             mujoco.mj_jacBody(m, data, self._jp, self._jr, self.torso)
             Jt = self._jr[:, dofs]
             Rt = data.xmat[self.torso].reshape(3, 3)
