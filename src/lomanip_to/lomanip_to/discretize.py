@@ -891,11 +891,13 @@ class ProblemData:
         grp = self.model.spheres[s].group
         for limb in LIMBS:
             c = self.contact(k, limb)
+            # off while the limb touches the object and at the knot it lets go (the release row keeps
+            # it at the contact there); on at the knot before a touch, so the hand comes from outside:
+            # with it off there, S1's left hand came over the box's top edge (123 mm into it on the
+            # sim's meshes, the executed robot fell) and S2's wrist was 118 mm inside the box
             near = [c]
             if k > 0:
                 near.append(self.contact(k - 1, limb))
-            if k + 1 < self.grid.K:
-                near.append(self.contact(k + 1, limb))
             for cc in near:
                 if cc is None or cc.object_id != oid:
                     continue

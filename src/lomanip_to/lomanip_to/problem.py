@@ -243,10 +243,11 @@ class Options:
     #: Off by default: on S1 it never converged within 60 iterations and cost 90-150 s a run
     #: (docs/to.md); the stitched trajectory is evaluated on the whole problem's rows and checked as it is.
     polish_iterations: int = 0
-    #: collision sphere groups checked against objects ("minimal collision set")
+    #: collision sphere groups checked against objects ("minimal collision set"); the physical check
+    #: counts every sphere, so a group left out here can fail it (S2's upper arm, 60 mm into the box)
     collision_groups: tuple = ("left_foot", "right_foot", "left_shin", "right_shin", "left_thigh",
                                "right_thigh", "pelvis", "torso", "left_hand", "right_hand",
-                               "left_forearm", "right_forearm")
+                               "left_forearm", "right_forearm", "left_upper_arm", "right_upper_arm")
     self_collision: bool = True
     weights: dict = field(default_factory=dict)
     #: extra ipopt options (expert use; e.g. {"mu_strategy": "monotone"})
