@@ -161,6 +161,9 @@ class Execution:
         for oid, (p, q) in tr.objects.items():
             if oid in sim.world.objects and sim.world.objects[oid].movable:
                 pa, qa = sim.object_pose(oid)
+                b = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, sim.world.objects[oid].body_name)
+                if b >= 0:  # the plan's pose is the object's CoM frame (the TO's), not the body origin
+                    pa = pa + frames.quat_to_matrix(qa) @ self.wbc._com_offset(b)
                 e_pos = max(e_pos, float(np.linalg.norm(pa - p[-1])))
                 dy = frames.quat_to_yaw(qa) - frames.quat_to_yaw(q[-1])
                 e_yaw = max(e_yaw, abs(math.atan2(math.sin(dy), math.cos(dy))))
