@@ -898,6 +898,10 @@ class ProblemData:
             near = [c]
             if k > 0:
                 near.append(self.contact(k - 1, limb))
+            # feet keep the older rule (off the knot before touchdown too): with the hands' rule for
+            # the feet as well, S1's subtask 2 (step onto the box) stopped at its iteration cap
+            if limb in FEET and k + 1 < self.grid.K:
+                near.append(self.contact(k + 1, limb))
             for cc in near:
                 if cc is None or cc.object_id != oid:
                     continue
