@@ -10,28 +10,18 @@ import numpy as np
 
 from lomanip_sim.hand_approach import approach_lift
 from lomanip_sim.hand_detour import HandBoxProbe, movable_bodies, static_obstacle_geoms
+from mocap_hand import hand_ids, scene
 
-_XML = """
-<mujoco>
-  <worldbody>
-    <geom name="floor" type="plane" size="2 2 0.1"/>
+_OBJECTS = """
     <body name="trolley" pos="0.85 0 0"><freejoint/>
       <geom name="handle" type="cylinder" size="0.016 0.225" pos="-0.385 0 0.85" euler="90 0 0"/>
     </body>
-    <body name="hand" mocap="true" pos="0 0 1">
-      <site name="hand_site" pos="0 0 0"/>
-      <geom name="hand_box" type="box" size="0.066 0.033 0.053" pos="0.06 0 0" contype="1" conaffinity="1"/>
-    </body>
-  </worldbody>
-</mujoco>
 """
 
 
 def _setup():
-    m = mujoco.MjModel.from_xml_string(_XML)
-    hand = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "hand")
-    site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "hand_site")
-    hg = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "hand_box")
+    m = mujoco.MjModel.from_xml_string(scene(_OBJECTS, site_offset=0.0, box_offset=0.06))
+    hand, site, hg = hand_ids(m)
     t = np.round(np.arange(0.0, 3.001, 0.01), 6)
     (b,) = movable_bodies(m, hand)
     pose = (np.repeat(np.array([[0.85, 0.0, 0.0]]), len(t), 0), np.repeat(np.array([[1.0, 0, 0, 0]]), len(t), 0))

@@ -8,28 +8,18 @@ import mujoco
 import numpy as np
 
 from lomanip_sim.hand_detour import HandBoxProbe, detour, movable_bodies, static_obstacle_geoms
+from mocap_hand import hand_ids, scene
 
-_XML = """
-<mujoco>
-  <worldbody>
-    <geom name="floor" type="plane" size="2 2 0.1"/>
+_OBJECTS = """
     <body name="table" pos="0.75 0 0.68"><geom name="top" type="box" size="0.3 0.4 0.02"/></body>
     <body name="box" pos="0.75 0 0.825"><freejoint/><geom name="box_geom" type="box" size="0.15 0.15 0.125"/></body>
-    <body name="hand" mocap="true" pos="0 0 1">
-      <site name="hand_site" pos="0.1 0 0"/>
-      <geom name="hand_box" type="box" size="0.066 0.033 0.053" pos="0.1 0 0" contype="1" conaffinity="1"/>
-    </body>
-  </worldbody>
-</mujoco>
 """
 
 
 def _setup():
-    m = mujoco.MjModel.from_xml_string(_XML)
-    hand = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "hand")
+    m = mujoco.MjModel.from_xml_string(scene(_OBJECTS, site_offset=0.1, box_offset=0.1))
+    hand, site, hg = hand_ids(m)
     geoms = static_obstacle_geoms(m, robot_root=hand)
-    site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "hand_site")
-    hg = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "hand_box")
     return m, hand, geoms, site, hg
 
 
