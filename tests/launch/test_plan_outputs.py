@@ -55,3 +55,17 @@ def test_save_plan_writes_summary_arrays_and_plot(tmp_path):
 def test_error_names():
     assert error_name(ErrorCode.TO_NOT_CONVERGED) == "TO_NOT_CONVERGED"
     assert error_name(12345) == "12345"
+
+
+def test_summary_reports_an_execution_that_fell(tmp_path):
+    """A run that fell ends with EXECUTION_FAILED before its execution timing; its metrics still count
+    (the summary of such a demo run said "not executed")."""
+    from lomanip_launch.plan_outputs import summary
+
+    r = _result()
+    assert summary(["p"], r, 1.0)["execution"] == "not executed (add --execute)"
+    r.error_code = ErrorCode(val=ErrorCode.EXECUTION_FAILED, message="execution: the robot fell at t=5.08 s")
+    r.execution.fell = True
+    r.execution.duration = 5.08
+    ex = summary(["p"], r, 1.0)["execution"]
+    assert ex["fell"] is True and ex["duration_s"] == 5.08

@@ -83,12 +83,18 @@ def summary(prompts: list[str], result, seconds: float) -> dict:
                        "max_contact_violation": float(stats.max_contact_violation),
                        "max_penetration_m": float(stats.max_penetration), "peak_memory_mb": round(stats.peak_memory_mb),
                        "status": stats.status_message},
-            # only when the plan was executed (an empty ExecutionMetrics would read as a failed run)
+            # only when the plan was executed (an empty ExecutionMetrics would read as a failed run); a
+            # run that fell ends with EXECUTION_FAILED before its stage timing, but with its metrics
             "execution": {"task_success": ex.task_success, "detail": ex.task_success_detail, "fell": ex.fell,
-                          "real_time_factor": round(ex.real_time_factor, 2),
+                          "duration_s": round(ex.duration, 2), "real_time_factor": round(ex.real_time_factor, 2),
                           "max_base_position_error_m": round(ex.max_base_position_error, 4),
                           "max_joint_error_rad": round(ex.max_joint_error, 4)}
-            if any(t.stage == "execution" for t in result.timings) else "not executed (add --execute)"}
+            if executed(result) else "not executed (add --execute)"}
+
+
+def executed(result) -> bool:
+    """Whether the plan ran under physics: an execution stage finished, or metrics came back."""
+    return any(t.stage == "execution" for t in result.timings) or result.execution.duration > 0.0
 
 
 def save_plan(run_dir: Path, prompts: list[str], result, seconds: float) -> list[Path]:
