@@ -86,3 +86,24 @@ def test_the_to_wheels_resist_rolling_as_the_sims_do():
     from lomanip_to.discretize import WHEEL_ROLLING_RESISTANCE
 
     assert WHEEL_ROLLING_RESISTANCE == S2TrolleyParams().wheel_rolling_resistance > 0
+
+
+def test_rolling_rows_are_on_only_while_rolling(g1):
+    """The nonholonomic row holds a rolling object only (a carried box on it could not move sideways),
+    and the wheels' longitudinal force is bounded by their rolling resistance."""
+    from lomanip_to import solver
+    from lomanip_to.discretize import WHEEL_ROLLING_RESISTANCE, ProblemData
+    from lomanip_to.fixtures import load_problem
+
+    data = ProblemData(load_problem("s2_trolley", model=g1), g1)
+    win, _ = solver.get_window(g1, data.structure)
+    _, _, lbg, ubg, _, _ = data.fill(win, 6.0, True, True, True)
+    for oid, j in data.midx.items():
+        slip, wheel = win.G[f"o{j} nonholonomic: no lateral slip"], win.G[f"o{j} rolling: no longitudinal wheel force"]
+        for k in range(data.grid.K):
+            rolling = data.obj_mode(k, oid) == "rolling"
+            assert np.all(np.isfinite(lbg[slip, k])) == rolling, (oid, k)
+            f = WHEEL_ROLLING_RESISTANCE / (g1.mass * 9.81)
+            assert np.allclose(ubg[wheel, k], f if rolling else np.inf), (oid, k)
+    assert any(data.obj_mode(k, "trolley") == "rolling" for k in range(data.grid.K))
+    assert any(data.obj_mode(k, "box") == "free" for k in range(data.grid.K))

@@ -611,10 +611,10 @@ class ProblemData:
                 rows(f"o{j} above the floor", k, 0 if mode == "free" else -INF, INF)
                 if mode != "rolling":
                     rows(f"o{j} rolling: no longitudinal wheel force", k, -INF, INF)
+                    rows(f"o{j} nonholonomic: no lateral slip", k, -INF, INF)
                 else:  # up to the wheels' rolling resistance: the hands cannot pull to stop it
                     f_rr = WHEEL_ROLLING_RESISTANCE / (m.mass * 9.81)
                     rows(f"o{j} rolling: no longitudinal wheel force", k, -f_rr, f_rr)
-                    rows(f"o{j} nonholonomic: no lateral slip", k, -INF, INF)
                 if mode != "attached":
                     rows(f"o{j} attachment", k, -INF, INF)
             for i, (s, (oid, pi)) in enumerate(self.pairs):
