@@ -12,10 +12,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .model import FEET, HANDS, HIP_YAW_GAIT_RANGE, LIMBS, SOLE_CENTER, G1Model, rot_to_rpy, rpy_to_rot
+from .model import FEET, HANDS, LIMBS, SOLE_CENTER, G1Model, rot_to_rpy, rpy_to_rot
 from .problem import FLOOR, STANCE, WALKING, Problem, SceneObject
 from .route import footprint_of, point_along, shortest_route
-from .transcription import Structure, Window
+from .transcription import G, Structure, Window
 
 INF = np.inf
 
@@ -499,14 +499,13 @@ class ProblemData:
             ubg[Gl[name], k] = hi
 
         # ---------------- variable bounds
+        q_lo, q_hi = m.gait_q_bounds()
         for k in range(K):
             xl = np.full(35, -INF)
             xu = np.full(35, INF)
             xl[2], xu[2] = 0.2, 1.6
             xl[3:5], xu[3:5] = -0.9, 0.9
-            xl[6:], xu[6:] = m.q_lower, m.q_upper
-            for j in m.hip_yaw_indices:
-                xl[6 + j], xu[6 + j] = max(xl[6 + j], -HIP_YAW_GAIT_RANGE), min(xu[6 + j], HIP_YAW_GAIT_RANGE)
+            xl[6:], xu[6:] = q_lo, q_hi
             setb("x", k, xl, xu)
             vmax = np.concatenate([np.full(6, 4.0), m.vel_max])
             setb("xd", k, -vmax, vmax)
@@ -613,7 +612,7 @@ class ProblemData:
                     rows(f"o{j} rolling: no longitudinal wheel force", k, -INF, INF)
                     rows(f"o{j} nonholonomic: no lateral slip", k, -INF, INF)
                 else:  # up to the wheels' rolling resistance: the hands cannot pull to stop it
-                    f_rr = WHEEL_ROLLING_RESISTANCE / (m.mass * 9.81)
+                    f_rr = WHEEL_ROLLING_RESISTANCE / (m.mass * G)
                     rows(f"o{j} rolling: no longitudinal wheel force", k, -f_rr, f_rr)
                 if mode != "attached":
                     rows(f"o{j} attachment", k, -INF, INF)
@@ -727,7 +726,6 @@ class ProblemData:
         Why: with zero forces the nominal push violated the object's dynamics by 2 (scaled), and
         ipopt restored feasibility by stopping the object: every push converged with the trolley
         where it started and the hands at 0 N."""
-        G = 9.81
         t, mg = self.grid.t, self.model.mass * G
         for k in range(self.grid.K - 1):
             for oid, j in self.midx.items():

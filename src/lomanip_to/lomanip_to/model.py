@@ -245,6 +245,14 @@ class G1Model:
         v[6:] = xd[6:]
         return v
 
+    def gait_q_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) joint bounds of the TO and its warm start: the G1's limits with the hip yaws
+        in ``HIP_YAW_GAIT_RANGE``."""
+        lo, hi = self.q_lower.copy(), self.q_upper.copy()
+        for j in self.hip_yaw_indices:
+            lo[j], hi[j] = max(lo[j], -HIP_YAW_GAIT_RANGE), min(hi[j], HIP_YAW_GAIT_RANGE)
+        return lo, hi
+
     def v_to_xd(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
         R = rpy_to_rot(x[3:6])
         xd = np.zeros(self.NX)

@@ -25,7 +25,7 @@ import casadi as ca
 import numpy as np
 
 from .ik import SOLE_FORWARD, STANCE_HALF_WIDTH
-from .model import FEET, HANDS, HIP_YAW_GAIT_RANGE, G1Model, rpy_to_rot
+from .model import FEET, HANDS, G1Model, rpy_to_rot
 from .transcription import box_sphere_distance
 
 #: weights of the per-knot tracking IK (metres and radians; posture terms are per joint)
@@ -234,10 +234,9 @@ def stepping_guess(data, x_nom: np.ndarray) -> np.ndarray:
     com = com_targets(data, feet)
     prims = fixed_primitives(data, x_nom)
     ik = _tracking_ik(model, len(prims) // 15)
-    lbx = np.concatenate([np.full(3, -np.inf), [-0.6, -0.6, -np.inf], model.q_lower])
-    ubx = np.concatenate([np.full(3, np.inf), [0.6, 0.6, np.inf], model.q_upper])
-    for j in model.hip_yaw_indices:  # the TO's gait range (discretize.HIP_YAW_GAIT_RANGE)
-        lbx[6 + j], ubx[6 + j] = max(lbx[6 + j], -HIP_YAW_GAIT_RANGE), min(ubx[6 + j], HIP_YAW_GAIT_RANGE)
+    q_lo, q_hi = model.gait_q_bounds()  # the TO's joint bounds (hip yaw in its gait range)
+    lbx = np.concatenate([np.full(3, -np.inf), [-0.6, -0.6, -np.inf], q_lo])
+    ubx = np.concatenate([np.full(3, np.inf), [0.6, 0.6, np.inf], q_hi])
     X = np.array(x_nom, float)
     X[0] = data.x_init
     prev = X[0].copy()
