@@ -22,7 +22,8 @@ import numpy as np
 from .hand_detour import HandBoxProbe
 
 
-def _smoothstep(u: np.ndarray) -> np.ndarray:
+def smoothstep(u: np.ndarray) -> np.ndarray:
+    """C1 ramp, 0 below 0 and 1 above 1: no velocity step where a ramp starts or ends."""
     u = np.clip(u, 0.0, 1.0)
     return u * u * (3.0 - 2.0 * u)
 
@@ -32,12 +33,12 @@ def _envelope(t: np.ndarray, need: np.ndarray, spread: float, start: float, post
     lift = np.zeros(len(t))
     hits = np.flatnonzero(need > 0)
     for i in hits:
-        lift = np.maximum(lift, need[i] * _smoothstep(1.0 - np.abs(t - t[i]) / spread))
+        lift = np.maximum(lift, need[i] * smoothstep(1.0 - np.abs(t - t[i]) / spread))
     if len(hits):  # down to 0 at start + post (at least ``taper`` s after the last lifted sample)
         tl = t[hits[-1]]
         end = max(start + post, tl + taper)
         after = t > tl
-        lift[after] = lift[hits[-1]] * _smoothstep((end - t[after]) / (end - tl))
+        lift[after] = lift[hits[-1]] * smoothstep((end - t[after]) / (end - tl))
     return lift
 
 

@@ -38,7 +38,7 @@ import numpy as np
 from . import frames
 from .robot_model import (FOOT_BODIES, FOOT_CONTACT_POINTS, FOOT_SITES, G1_JOINT_NAMES, HAND_COLLISION_HALF_SIZE,
                           HAND_SITES, PELVIS_BODY, TORSO_BODY)
-from .hand_approach import approach_lift
+from .hand_approach import approach_lift, smoothstep
 from .hand_detour import Detour, HandBoxProbe, detour, movable_bodies, static_obstacle_geoms
 from .trajectory import FEET, HANDS, Trajectory
 from .world import World
@@ -186,11 +186,6 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
-def _smoothstep(u: np.ndarray) -> np.ndarray:
-    """C1 ramp on [0, 1]: no velocity step where a ramp starts or ends."""
-    return u * u * (3.0 - 2.0 * u)
-
-
 def _rot_error(R_des: np.ndarray, R: np.ndarray) -> np.ndarray:
     """World-frame rotation vector (small-angle) that takes R to R_des."""
     E = R_des @ R.T
@@ -293,14 +288,15 @@ class WholeBodyController:
                 sv[l][i, 3:] = self._jr @ d.qvel
         t = tr.t
         root = int(m.body_rootid[self.pelvis])
-        obstacles = static_obstacle_geoms(m, root) if self.g.hand_detour else []
+        static_geoms = static_obstacle_geoms(m, root)
+        obstacles = static_geoms if self.g.hand_detour else []
         mov_bodies = movable_bodies(m, root)
         movable = self._movable_poses(mov_bodies) if obstacles or (self.g.hand_approach and mov_bodies) else {}
         for limb in HANDS:  # the plan's hand is a point on the surface; the sim's hand is a box
             off = self._hand_offsets(limb, sR[limb])
             sp[limb] = sp[limb] + off
             if self.g.hand_approach and movable and self.hand_geom[limb] >= 0:
-                probe = HandBoxProbe(m, self.hand_geom[limb], self.site_id[limb], static_obstacle_geoms(m, root), movable)
+                probe = HandBoxProbe(m, self.hand_geom[limb], self.site_id[limb], static_geoms, movable)
                 for start, c in self._contact_starts(limb):
                     normals = self._contact_normals(c)
                     if self.g.hand_approach_up > 0:  # tilt the lift towards up (less arm mass moved back), faces that look up
@@ -408,7 +404,7 @@ class WholeBodyController:
             # approach from outside: extra clearance until shortly before contact, gone just after it
             u = np.clip((ph.start + 0.1 - tr.t) / 0.2, 0.0, 1.0)
             if g.hand_offset_smooth:
-                w, u = _smoothstep(w), _smoothstep(u)
+                w, u = smoothstep(w), smoothstep(u)
             clear = g.hand_clearance * u
             for i in np.nonzero(w > 0)[0]:
                 n = normals[i]
