@@ -37,8 +37,19 @@ mkdir -p "$STAMPS"
 # 3. Pinned Python dependencies.
 req=$(digest requirements.txt)
 if [ "$(cat "$STAMPS/requirements" 2>/dev/null)" != "$req" ]; then
+  # The wheels unpack to about 4 GB (torch, open3d, mujoco); stop early with one clear line rather
+  # than half-install when the disk is nearly full.
+  free_kb=$(df -Pk "$VENV" | awk 'NR==2 {print $4}')
+  if [ "${free_kb:-0}" -lt 6000000 ]; then
+    say "ERROR: only $((free_kb / 1024)) MB free on the disk of $VENV; the Python dependencies need about 6 GB"
+    exit 1
+  fi
   say "installing Python dependencies (first time: a few minutes)"
-  "$VENV/bin/pip" install -q --disable-pip-version-check -r requirements.txt 2>&1 | grep -v "is ignored: it is neither" || true
+  set +o pipefail
+  "$VENV/bin/pip" install -q --no-cache-dir --disable-pip-version-check -r requirements.txt 2>&1 | grep -v "is ignored: it is neither"
+  pip_rc=${PIPESTATUS[0]}
+  set -o pipefail
+  if [ "$pip_rc" != 0 ]; then say "ERROR: pip install -r requirements.txt failed (exit $pip_rc; see above)"; exit 1; fi
   "$VENV/bin/python" -c 'import rclpy, mujoco, casadi, pinocchio, rosbags' 
   echo "$req" > "$STAMPS/requirements"
 fi
