@@ -45,6 +45,11 @@ def test_fixture_round_trip(model, name):
                {k: (m.mode, m.support, m.attached_to) for k, m in b.objects.items()}
     for a, b in zip(back.keyframes, prob.keyframes):
         np.testing.assert_allclose(a.x(), b.x(), atol=1e-9)
+    # placement goals keep their time (S1's box at the place keyframe; the lift's at the end)
+    assert [(g.object_id, g.time) for g in back.placement_goals] == [(g.object_id, g.time) for g in prob.placement_goals]
+    for a, b in zip(back.placement_goals, prob.placement_goals):
+        np.testing.assert_allclose(a.position, b.position, atol=1e-9)
+        assert a.yaw == pytest.approx(b.yaw)
 
 
 def test_foreign_joint_names_are_refused(model):

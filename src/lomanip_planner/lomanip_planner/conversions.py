@@ -2,6 +2,8 @@
 (besides the node)."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
 from sensor_msgs.msg import JointState
@@ -55,7 +57,9 @@ def subtasks_from_perception(contact_set, human_poses, prompts: list[str]) -> li
 
 
 def placement_goal(msg) -> PlacementGoal:
-    return PlacementGoal(msg.object_id, (msg.position.x, msg.position.y, msg.position.z), float(msg.yaw))
+    t = float(msg.time)
+    return PlacementGoal(msg.object_id, (msg.position.x, msg.position.y, msg.position.z), float(msg.yaw),
+                         time=t if math.isfinite(t) and t > 0.0 else None)
 
 
 def keyframe_array_msg(keyframes, stamp) -> KeyframeArray:

@@ -185,14 +185,24 @@ def initial_configuration(joints, base_pose: Pose, keyframes: list[P.Keyframe], 
     return tuple(keyframes[0].x())
 
 
+def goal_time_from_msg(t: float) -> float | None:
+    """The message's ``time`` (0, negative or NaN: at the end of the trajectory) as the TO's optional time."""
+    t = float(t)
+    return t if math.isfinite(t) and t > 0.0 else None
+
+
+def placement_goal_from_msg(g) -> P.PlacementGoal:
+    return P.PlacementGoal(g.object_id, (g.position.x, g.position.y, g.position.z), float(g.yaw),
+                           time=goal_time_from_msg(g.time))
+
+
 def problem_from_request(req, joint_names, base_options: P.Options | None = None) -> P.Problem:
     keyframes = keyframes_from_msg(req.keyframes, joint_names)
     return P.Problem(objects=scene_from_msg(req.scene), keyframes=keyframes,
                      phases=schedule_from_msg(req.contact_schedule),
                      initial_configuration=initial_configuration(req.initial_joints, req.initial_base_pose,
                                                                  keyframes, joint_names),
-                     placement_goals=[P.PlacementGoal(g.object_id, (g.position.x, g.position.y, g.position.z), g.yaw)
-                                      for g in req.placement_goals],
+                     placement_goals=[placement_goal_from_msg(g) for g in req.placement_goals],
                      options=options_from_msg(req.options, base_options), name=req.scene.scenario)
 
 
@@ -340,7 +350,8 @@ def request_from_problem(prob: P.Problem, joint_names):
                               confidence=1.0) for c in kf.contacts]
         req.keyframes.keyframes.append(m)
     req.contact_schedule = schedule_msg(prob.phases)
-    req.placement_goals = [PlacementGoal(object_id=g.object_id, position=_pt(g.position), yaw=float(g.yaw))
+    req.placement_goals = [PlacementGoal(object_id=g.object_id, position=_pt(g.position), yaw=float(g.yaw),
+                                         time=float(g.time) if g.time is not None else 0.0)
                            for g in prob.placement_goals]
     o = prob.options
     req.options = TrajectoryOptions(
