@@ -140,8 +140,8 @@ def test_hand_force_stops_when_the_object_is_lost():
     t_mid = 0.5 * (span[0].start + span[-1].end)
     while wbc.status.t_ref < t_mid:
         sim.step()
-    i, _s = tr.index_at(wbc.status.t_ref)
-    planned = tr.forces["left_hand"][i]
+    i, s = tr.index_at(wbc.status.t_ref)
+    planned = wbc.hand_feedforward("left_hand", tr.phase_at(wbc.status.t_ref).contacts, i, s)
     assert np.linalg.norm(planned) > 1.0
     assert np.linalg.norm(wbc.last_forces["left_hand"] - planned) < 0.05 * np.linalg.norm(planned) + 0.5
     box = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "box")
@@ -175,3 +175,43 @@ def test_grasp_normal_turns_with_the_object():
     assert np.allclose(normals[-1], [-n0[1], n0[0], n0[2]], atol=1e-6)  # n0 turned +90 deg about z
     fixed = WholeBodyController(sim.world, turned, WbcGains(hand_normal_follows_object=False))
     assert np.allclose(fixed._contact_normals(contact), n0)
+
+
+def test_lifted_object_gets_the_force_its_planned_motion_needs():
+    """On a lifted object the hands' fed-forward net force is m (a + g) of its planned motion, split
+    between the hands, with the plan's squeeze kept: S1's plan lifts its box off the floor with the
+    floor's force (the last support knot's force acts over the lift's first interval) while its
+    hands push the box down, and fed forward as planned the box stayed on the floor."""
+    import dataclasses
+
+    sim, tr = simulation("case_lift_box")
+    P = tr.objects["box"][0]
+    mass = sim.world.objects["box"].mass
+    lifted = [k for k in range(1, tr.n - 2) if P[k, 2] > P[0, 2] + 0.02 and P[k + 1, 2] > P[0, 2] + 0.02
+              and {"left_hand", "right_hand"} <= set(tr.phase_at(tr.t[k]).contacts)]
+    resting = [k for k in range(1, tr.n - 2) if P[k + 1, 2] < P[0, 2] + 1e-3
+               and "left_hand" in tr.phase_at(tr.t[k]).contacts]
+    assert lifted and resting
+    # the plan's hands push the box down by 20 N each more than they should (an inconsistent plan)
+    pushed = dataclasses.replace(tr, forces={l: f + (np.array([0.0, 0.0, 20.0]) if "hand" in l else 0.0)
+                                             for l, f in tr.forces.items()})  # fmt: skip
+    a = np.gradient(np.gradient(P, tr.t, axis=0), tr.t, axis=0)
+    k_mid = lifted[len(lifted) // 2]
+    net = []
+    for plan in (tr, pushed):
+        wbc = WholeBodyController(sim.world, plan)
+        c = plan.phase_at(plan.t[k_mid]).contacts
+        net.append(sum(wbc.hand_feedforward(l, c, k_mid, 0.0) for l in ("left_hand", "right_hand")))
+        old = WholeBodyController(sim.world, plan, WbcGains(hand_force_from_object_motion=False))
+        for k in lifted[:: max(1, len(lifted) // 5)]:
+            c = plan.phase_at(plan.t[k]).contacts
+            fl, fr = (wbc.hand_feedforward(l, c, k, 0.0) for l in ("left_hand", "right_hand"))
+            need = mass * (a[k] + [0.0, 0.0, 9.81])
+            assert np.allclose(-(fl + fr), need, atol=1e-6)  # the box receives what its motion needs
+            squeeze = plan.forces["left_hand"][k] - plan.forces["right_hand"][k]
+            assert np.allclose(fl - fr, squeeze, atol=1e-6)
+            assert np.allclose(old.hand_feedforward("left_hand", c, k, 0.0), plan.forces["left_hand"][k])
+        k = resting[-1]  # on its support: the plan's force as it is
+        c = plan.phase_at(plan.t[k]).contacts
+        assert np.allclose(wbc.hand_feedforward("left_hand", c, k, 0.0), plan.forces["left_hand"][k])
+    assert np.allclose(net[0], net[1], atol=1e-6)  # the inconsistent plan's 40 N downward push is not fed forward

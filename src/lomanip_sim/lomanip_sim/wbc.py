@@ -158,6 +158,16 @@ class WbcGains:
     # behind the plan at 4.6 s, the stiff hands chased the planned handle and pressed 430 N onto
     # the bar (plan 34 N), the robot leant on the rolling trolley and fell forwards at 6.0 s
     hand_follows_object: bool = True
+    # the hands' net force on a lifted object (planned this high above its initial height) is fed
+    # forward as what the object's planned motion needs, m (a + g), split equally between the hands
+    # that hold it; the plan's squeeze (each hand's force minus the hands' mean) is kept. The TO's
+    # forces act over a whole knot interval (explicit Euler), and where an object leaves its support
+    # the last support knot's force lifts it: S1's box rises 14 cm (0 -> 0.7 m/s) over 3.0-3.2 s
+    # on 71.5 N from the floor while the planned hands push it down with 38 N. Fed forward as
+    # planned, the hands pressed the box down as it was to rise, it stayed on the floor (lost at
+    # 3.1 s) and the robot fell at 4.24 s; with this, the box is carried to 3.56 s (fell at 5.58 s)
+    hand_force_from_object_motion: bool = True
+    object_lift_height: float = 0.01  # m
 
 
 @dataclass
@@ -246,6 +256,7 @@ class WholeBodyController:
                           for l in HANDS}  # fmt: skip
         self.refs = self._precompute_refs()
         self._hand_stiff = {l: self._near_contact(l) for l in HANDS}
+        self._object_net = self._object_net_forces() if self.g.hand_force_from_object_motion else {}
         self._pyramids: dict = {}
         self.t0 = 0.0
         self.status = WbcStatus()
@@ -324,6 +335,22 @@ class WholeBodyController:
                      torso_R=torso_R, torso_w=torso_w,
                      site_p=sp, site_R=sR, site_v=sv, site_a={l: grad(v) for l, v in sv.items()},
                      qdd=grad(tr.qd))  # fmt: skip
+
+    def _object_net_forces(self) -> dict:
+        """object -> (N,3) force the grasp must give it for its planned motion, m (a + g) (dense plan,
+        second differences), NaN where the plan has it on its support (within ``object_lift_height``
+        of its initial height: there the support carries part of it)."""
+        tr, out = self.traj, {}
+        for oid, (P, _Q) in tr.objects.items():
+            so = self.world.objects.get(oid)
+            if so is None or not so.movable or so.mass <= 0:
+                continue
+            P = np.asarray(P, float)
+            a = np.gradient(np.gradient(P, tr.t, axis=0), tr.t, axis=0)
+            need = so.mass * (a + np.array([0.0, 0.0, 9.81]))
+            need[P[:, 2] < P[0, 2] + self.g.object_lift_height] = np.nan
+            out[oid] = need
+        return out
 
     def _movable_poses(self, bodies: list[int]) -> dict[int, tuple[np.ndarray, np.ndarray]]:
         """body -> (N,3) positions, (N,4) wxyz quaternions along the grid: planned, or the initial pose."""
@@ -497,6 +524,24 @@ class WholeBodyController:
         q = a + s * (b - a)
         q[3:7] /= np.linalg.norm(q[3:7])
         return q
+
+    def hand_feedforward(self, limb: str, contacts: dict, i: int, s: float) -> np.ndarray:
+        """Force on the robot at hand ``limb`` (world, N) fed forward at grid time i + s of an engaged grasp:
+        the plan's, or on a lifted object (``hand_force_from_object_motion``) the plan's squeeze plus
+        this hand's share of what the object's planned motion needs."""
+        tr = self.traj
+
+        def lerp(a):
+            return a[i] + s * (a[i + 1] - a[i])
+
+        f = lerp(tr.forces[limb])
+        oid = contacts[limb].object_id
+        need = self._object_net.get(oid)
+        if need is None or np.isnan(need[i, 0]) or np.isnan(need[i + 1, 0]):
+            return f
+        mates = [l for l in HANDS if contacts.get(l) is not None and contacts[l].object_id == oid and l in tr.forces]
+        mean = sum(lerp(tr.forces[l]) for l in mates) / len(mates)
+        return f - mean - lerp(need) / len(mates)  # the object receives -f (Newton's third law)
 
     # ---------------------------------------------------------------------------- control
     def reset(self, data: mujoco.MjData) -> None:
@@ -718,7 +763,7 @@ class WholeBodyController:
                 self._last_touch[limb] = t
             lost = g.hand_lost_time > 0 and t - self._last_touch.get(limb, -np.inf) > g.hand_lost_time
             if self._engaged.get(limb) is phase and limb in tr.forces and not lost:
-                bhand[3 * k : 3 * k + 3] = lerp(tr.forces[limb])
+                bhand[3 * k : 3 * k + 3] = self.hand_feedforward(limb, contacts, i, s)
         # friction pyramids: 4 tangent rows + normal bounds per point
         Ain = np.zeros((5 * len(points), nx))
         bu = np.zeros(5 * len(points))
