@@ -39,7 +39,14 @@ def hard_deadline(time_limit: float) -> float:
 
 
 def _worker(conn, threads: int) -> None:
-    """Child: solve each problem received, send progress messages and the result (or the error)."""
+    """Child: solve each problem received, send progress messages and the result (or the error).
+
+    Ctrl-C / SIGINT to the process group is the parent's to handle: the worker ignores it and ends
+    when the parent closes the pipe or kills it (before, each shutdown logged a KeyboardInterrupt
+    traceback from the idle worker)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     from . import solver
 
     while True:

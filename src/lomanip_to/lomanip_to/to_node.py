@@ -120,6 +120,9 @@ class TONode(Node):
             return response
         stats = result.stats
         response.trajectory.solver_statistics = conv.statistics_msg(stats)
+        for stage in stats.stages:  # one line per homotopy stage of each segment: where the time went
+            log.info(f"  {stage['stage'].strip()}: {stage['status']}, {stage['iterations']} iterations, "
+                     f"{stage['time']:.1f} s")
         log.info(f"{stats.status_message()}; {stats.iterations} iterations, build {stats.build_time:.1f} s, "
                  f"solve {stats.solve_time:.1f} s")
         if not result.success:
