@@ -159,6 +159,7 @@ class ProblemData:
         prob = self.prob
         K = self.grid.K
         self.obj_nom = {}
+        self.support_poses = {}  # see use_solved_support_poses
         goals = {g.object_id: g for g in prob.placement_goals}
         for oid in self.moving:
             o = prob.object(oid)
@@ -752,10 +753,22 @@ class ProblemData:
         return pose[2] + o.top_z(), pose[:2], pose[5], o.footprint_half()
 
     def _nominal_pose_at_contact(self, c):
+        poses = self.support_poses.get(c.object_id, self.obj_nom[c.object_id])
         for k in range(self.grid.K):
             if self.contact(k, "left_foot") is c or self.contact(k, "right_foot") is c:
-                return self.obj_nom[c.object_id][k]
-        return self.obj_nom[c.object_id][-1]
+                return poses[k]
+        return poses[-1]
+
+    def use_solved_support_poses(self, poses: dict) -> None:
+        """Feet on a moved object stand on its solved pose (object id -> (K, 6) p, rpy per knot)
+        instead of its nominal one.
+
+        Why: the patch and height rows of a foot on an object take the surface as a parameter. A
+        subtask segment starts with each object where the previous segment left it, so its rows use
+        the real pose; the whole problem's nominal pose is the placement goal, a few mm to cm away.
+        Evaluating the stitched segments with the nominal surface reported S1's foot on the box
+        5 mm outside its patch when it was inside the box as placed."""
+        self.support_poses = {oid: np.asarray(p, float) for oid, p in poses.items()}
 
     def _surface_height(self, c):
         return self._surface(c)[0]

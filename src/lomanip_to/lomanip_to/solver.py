@@ -374,6 +374,8 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
             stalled = [st["stage"].strip() for st in run.stages if st["status"] == STALLED_STATUS]
             status = f"{STALLED_STATUS} ({'; '.join(stalled)})" if stalled else "Solve_Succeeded"
             z_st, lam_st = _stitch(win, data, parts)
+            Zm = z_st.reshape(data.grid.K + 1, win.W.n)
+            data.use_solved_support_poses({oid: Zm[:data.grid.K, win.W[f"o{j}_pose"]] for oid, j in data.midx.items()})
             lbw, ubw, lbg, ubg, Pm, _ = data.fill(win, *homotopy_stages(opt)[-1])
             nlp = get_nlp(wd, data.structure, data.grid.K, threads)
             args = dict(lbx=_vec(lbw), ubx=_vec(ubw), lbg=_vec(lbg), ubg=_vec(ubg), p=_vec(Pm))
