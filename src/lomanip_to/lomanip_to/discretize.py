@@ -528,7 +528,12 @@ class ProblemData:
             for oid, j in self.midx.items():
                 mode = self.obj_mode(k, oid)
                 prev = self.obj_mode(k - 1, oid) if k > 0 else "fixed"
-                if mode == "fixed" or prev == "fixed" or k == 0:
+                # lift-off: the first free knot after resting on a support has the object still at
+                # rest, so the support's last force (which acts over [t_k-1, t_k]) only holds it and
+                # the hands alone accelerate it from there. Without this the floor's force at the
+                # last supported knot launched S1's box 14 cm up while the hands pushed it down.
+                lift_off = mode == "free" and prev in ("supported", "rolling")
+                if mode == "fixed" or prev == "fixed" or k == 0 or lift_off:
                     setb(f"o{j}_vel", k, 0, 0)
                 else:
                     setb(f"o{j}_vel", k, -3, 3)

@@ -1,0 +1,23 @@
+"""Lift-off of a resting object: its support only holds it, the hands alone accelerate it."""
+import numpy as np
+
+from lomanip_to import solver
+from lomanip_to.discretize import ProblemData
+from lomanip_to.fixtures import load_problem
+
+
+def test_first_free_knot_after_a_support_is_at_rest(g1):
+    data = ProblemData(load_problem("s1_basket", model=g1), g1)
+    win, _ = solver.get_window(g1, data.structure)
+    lbw, ubw, _, _, _, _ = data.fill(win, *solver.homotopy_stages(data.prob.options)[-1])
+    j = data.midx["box"]
+    modes = [data.obj_mode(k, "box") for k in range(data.grid.K)]
+    lift = [k for k in range(1, data.grid.K) if modes[k] == "free" and modes[k - 1] == "supported"]
+    assert lift, f"S1 lifts the box from the floor: {modes}"
+    v = win.W[f"o{j}_vel"]
+    for k in lift:
+        # semi-implicit integration: v_k = v_k-1 + dt F_k-1 / m, p_k = p_k-1 + dt v_k. With v_k = 0
+        # the support's force at k-1 only balances gravity and the hands; it cannot launch the box.
+        assert np.all(lbw[v, k] == 0) and np.all(ubw[v, k] == 0)
+        # and the carried knots after it may move
+        assert np.any(ubw[v, k + 1] > 0)
