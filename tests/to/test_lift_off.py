@@ -21,3 +21,20 @@ def test_first_free_knot_after_a_support_is_at_rest(g1):
         assert np.all(lbw[v, k] == 0) and np.all(ubw[v, k] == 0)
         # and the carried knots after it may move
         assert np.any(ubw[v, k + 1] > 0)
+
+
+def test_a_carried_object_stays_nearly_level(g1):
+    from lomanip_to.discretize import CARRY_TILT
+
+    data = ProblemData(load_problem("s1_basket", model=g1), g1)
+    win, _ = solver.get_window(g1, data.structure)
+    lbw, ubw, _, _, _, _ = data.fill(win, *solver.homotopy_stages(data.prob.options)[-1])
+    pose = win.W[f"o{data.midx['box']}_pose"]
+    free = [k for k in range(1, data.grid.K) if data.obj_mode(k, "box") == "free"]
+    assert free
+    for k in free:
+        np.testing.assert_array_equal(ubw[pose, k][3:5], [CARRY_TILT, CARRY_TILT])
+        np.testing.assert_array_equal(lbw[pose, k][3:5], [-CARRY_TILT, -CARRY_TILT])
+        assert ubw[pose, k][5] == np.inf  # yaw is the carrier's to choose
+    resting = [k for k in range(1, data.grid.K) if data.obj_mode(k, "box") == "fixed"]
+    assert resting and all(ubw[pose, k][3] == np.inf for k in resting)

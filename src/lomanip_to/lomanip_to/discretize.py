@@ -102,6 +102,10 @@ FEET_MIN_LATERAL = 0.10
 #: With 0 (free rolling) no push was feasible: the hands push through a friction contact and cannot pull,
 #: so nothing could stop the trolley at its goal, and every push converged with the trolley unmoved
 WHEEL_ROLLING_RESISTANCE = 1.5
+#: largest roll and pitch (rad) of a carried object: a carrying choice, like the gait rows. Without it
+#: S1's plans tilted the box 0.3-0.7 rad while carrying it; a two-hand friction grasp under physics
+#: then let it pivot about the axis between the hands and slide out (docs/execution.md, session 5)
+CARRY_TILT = 0.25
 #: time (s) the nominal takes to stand up after the hands let go at the end of a task or segment
 STAND_UP_TIME = 1.0
 
@@ -545,6 +549,9 @@ class ProblemData:
                     o = prob.object(oid)
                     pose0 = np.concatenate([np.asarray(o.position, float), o.rpy()])
                     setb(f"o{j}_pose", k, pose0, pose0)
+                elif mode == "free":  # carried: roll and pitch within CARRY_TILT
+                    setb(f"o{j}_pose", k, [-INF, -INF, -INF, -CARRY_TILT, -CARRY_TILT, -INF],
+                         [INF, INF, INF, CARRY_TILT, CARRY_TILT, INF])
             setb("slack", k, 0, INF if homotopy else 0)
         # start and end at rest: only xd is bounded (bounding the momenta too would leave the CMM
         # rows of these knots with an all-zero Jacobian -> degenerate, slow ipopt convergence)
