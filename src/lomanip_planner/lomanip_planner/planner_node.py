@@ -74,10 +74,11 @@ class PlannerNode(Node):
         self._joints: JointState | None = None
         self._pelvis = None
         self._to_progress: Callable[[SolverStatistics], None] | None = None
-        group = ReentrantCallbackGroup()
+        group = self._group = ReentrantCallbackGroup()
         self.create_subscription(SceneObjects, "/lomanip/scene_objects", self._on_scene, LATCHED, callback_group=group)
-        self.create_subscription(JointState, "/joint_states", self._on_joints, 10, callback_group=group)
-        self.create_subscription(TFMessage, "/tf", self._on_tf, 10, callback_group=group)
+        # /joint_states (100 Hz) and /tf (50 Hz) are subscribed only while a request waits for the
+        # robot's state (_wait_for_state): kept open they cost this node a third of a core in
+        # rclpy, taken from the TO solving beside it on a 2-core machine
         self.create_subscription(SolverStatistics, "/lomanip/to/progress", self._on_to_progress, 10,
                                  callback_group=group)
         self.pub_keyframes = self.create_publisher(KeyframeArray, "/lomanip/keyframes", LATCHED)
@@ -105,6 +106,24 @@ class PlannerNode(Node):
         for t in msg.transforms:
             if t.header.frame_id == "world" and t.child_frame_id == "pelvis":
                 self._pelvis = t.transform
+
+    def _wait_for_state(self) -> None:
+        """The robot's current joints and pelvis pose, from fresh /joint_states and /tf messages."""
+        self._joints = self._pelvis = None
+        subs = [self.create_subscription(JointState, "/joint_states", self._on_joints, 10, callback_group=self._group),
+                self.create_subscription(TFMessage, "/tf", self._on_tf, 10, callback_group=self._group)]
+        try:
+            deadline = time.monotonic() + self.timeouts["state"]
+            while self._scene is None or self._joints is None or self._pelvis is None:
+                if time.monotonic() > deadline:
+                    missing = [name for name, v in (("/lomanip/scene_objects", self._scene), ("/joint_states", self._joints),
+                                                    ("/tf world->pelvis", self._pelvis)) if v is None]
+                    raise PlanFailed(ErrorCode.NOT_READY, f"no data from the simulator on {', '.join(missing)} "
+                                     f"after {self.timeouts['state']:.0f} s; is lomanip_sim running?")
+                time.sleep(0.05)
+        finally:
+            for sub in subs:
+                self.destroy_subscription(sub)
 
     def _on_to_progress(self, msg: SolverStatistics) -> None:
         sink = self._to_progress
@@ -196,14 +215,7 @@ class PlannerNode(Node):
                 raise PlanFailed(res.error_code.val, f"reset: {res.error_code.message}")
             self._scene = res.scene
             time.sleep(0.2)   # let /joint_states and /tf report the new world
-        deadline = time.monotonic() + self.timeouts["state"]
-        while self._scene is None or self._joints is None or self._pelvis is None:
-            if time.monotonic() > deadline:
-                missing = [name for name, v in (("/lomanip/scene_objects", self._scene), ("/joint_states", self._joints),
-                                                ("/tf world->pelvis", self._pelvis)) if v is None]
-                raise PlanFailed(ErrorCode.NOT_READY, f"no data from the simulator on {', '.join(missing)} "
-                                 f"after {self.timeouts['state']:.0f} s; is lomanip_sim running?")
-            time.sleep(0.1)
+        self._wait_for_state()
 
         known = {o.id: o for o in self._scene.objects}
         for g in request.placement_goals:
