@@ -12,8 +12,9 @@ pytestmark = pytest.mark.graph
 
 @pytest.fixture(scope="module")
 def to_node(tmp_path_factory):
-    log = tmp_path_factory.mktemp("to") / "to.log"
-    with ros_process(["-m", "lomanip_to.to_node"], log) as proc:
+    d = tmp_path_factory.mktemp("to")
+    log = d / "to.log"
+    with ros_process(["-m", "lomanip_to.to_node", "--ros-args", "-p", f"problem_dir:={d / 'problems'}"], log) as proc:
         yield proc, log
 
 
@@ -62,8 +63,16 @@ def test_one_step_is_solved_published_and_physically_consistent(to_node, client)
 
     from lomanip_msgs.msg import ErrorCode, WholeBodyTrajectory
 
-    res = _call(client, _request("case_one_step"), to_node)
+    req = _request("case_one_step")
+    res = _call(client, req, to_node)
     assert res.error_code.val == ErrorCode.SUCCESS, res.error_code.message
+    # the request's problem was saved for offline re-runs (problem_dir)
+    import pickle
+
+    saved = sorted((to_node[1].parent / "problems").glob("to_problem_*.pkl"))
+    assert saved, "problem_dir holds no problem"
+    prob = pickle.loads(saved[0].read_bytes())
+    assert len(prob.phases) == len(req.contact_schedule.phases)
     traj = res.trajectory
     stats = traj.solver_statistics
     assert stats.converged and stats.max_penetration <= 5e-3

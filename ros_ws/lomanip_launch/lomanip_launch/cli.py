@@ -81,7 +81,8 @@ def build_graph(args: argparse.Namespace, run_dir: Path) -> ProcessGraph:
     specs = [NodeSpec("lomanip_sim", [python, "-m", "lomanip_sim.sim_node", *ros_args]),
              NodeSpec("lomanip_perception", [python, "-m", "lomanip_perception.perception_node", "--ros-args",
                                              "--params-file", str(params_file)]),
-             NodeSpec("lomanip_to", [python, "-m", "lomanip_to.to_node", "--ros-args", "--params-file", str(params_file)]),
+             NodeSpec("lomanip_to", [python, "-m", "lomanip_to.to_node", "--ros-args", "--params-file", str(params_file),
+                                     "-p", f"problem_dir:={run_dir / 'logs'}"]),
              NodeSpec("lomanip_planner", [python, "-m", "lomanip_planner.planner_node", "--ros-args",
                                           "--params-file", str(params_file)])]
     exclude = list(getattr(args, "record_exclude", None) or [])
@@ -226,7 +227,8 @@ def make_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="the main job (see README)")
     graph_options(demo)
     demo.add_argument("--duration", type=float, default=10.0, help="seconds to record")
-    demo.add_argument("--task", default="push_trolley", help="task planned in step 2 (ros_ws/config/tasks/)")
+    demo.add_argument("--task", default="s1_basket", help="task planned in step 2 (ros_ws/config/tasks/; "
+                      "push_trolley is a shorter one)")
     demo.add_argument("--no-plan", action="store_true", help="only step 1 (graph, bag, PNGs)")
     demo.add_argument("--execute", action="store_true", help="execute the plan under physics afterwards")
     demo.add_argument("--no-progress", action="store_true", help="log lines instead of a progress bar")

@@ -52,6 +52,10 @@ class TONode(Node):
         # solve in a worker process that is killed if an ipopt iteration overruns the time limit
         # (solver_process.hard_deadline); False: in this process, no hard deadline
         self.isolate_solver = bool(self.declare_parameter("isolate_solver", True).value)
+        # where each accepted request's problem is pickled before its solve ("" = nowhere), so that a
+        # solve that failed in the graph can be re-run offline: solver.solve(pickle.load(f))
+        self.problem_dir = str(self.declare_parameter("problem_dir", "").value)
+        self._requests = 0
         from .solver import default_model
 
         t0 = time.perf_counter()
@@ -73,6 +77,22 @@ class TONode(Node):
         self.create_service(OptimizeTrajectory, "/lomanip/to/optimize", self._on_optimize,
                             callback_group=ReentrantCallbackGroup())
         self.create_service(Trigger, "/lomanip/to/cancel", self._on_cancel, callback_group=ReentrantCallbackGroup())
+
+    def _save_problem(self, problem) -> None:
+        if not self.problem_dir:
+            return
+        import os
+        import pickle
+
+        self._requests += 1
+        path = os.path.join(self.problem_dir, f"to_problem_{self._requests}.pkl")
+        try:
+            os.makedirs(self.problem_dir, exist_ok=True)
+            with open(path, "wb") as f:
+                pickle.dump(problem, f)
+            self.get_logger().info(f"problem saved to {path}")
+        except OSError as exc:   # a full disk must not stop the solve
+            self.get_logger().warning(f"could not save the problem to {path}: {exc}")
 
     def _on_cancel(self, request, response):
         if self.worker is None:
@@ -108,6 +128,7 @@ class TONode(Node):
             return response
         log.info(f"optimising {problem.name or 'trajectory'}: {len(problem.keyframes)} keyframes, "
                  f"{len(problem.phases)} phases, {problem.duration:.1f} s")
+        self._save_problem(problem)
         try:
             if self.worker is not None:
                 self._cancel.clear()
