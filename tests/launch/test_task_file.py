@@ -41,3 +41,18 @@ def test_yaml_syntax_error_names_the_file(tmp_path):
     path.write_text("scenario: [s1\n")
     with pytest.raises(TaskFileError, match="broken.yaml"):
         load_task(str(path))
+
+
+@pytest.mark.parametrize("name", ["s1_basket", "s2_trolley", "push_trolley"])
+def test_shipped_tasks_stop_the_to_before_the_planner_gives_up(name):
+    """The TO's hard deadline (its time limit + 25 %, at least + 60 s) ends before the planner's
+    optimisation timeout, so a slow solve answers TIMEOUT from the TO node rather than leaving it busy."""
+    from pathlib import Path
+
+    import yaml
+    from lomanip_to.solver_process import hard_deadline
+
+    params = yaml.safe_load((Path(__file__).parents[2] / "ros_ws/config/lomanip.yaml").read_text())
+    planner_timeout = params["lomanip_planner"]["ros__parameters"]["optimisation_timeout"]
+    limit = load_task(name).options["time_limit"]
+    assert hard_deadline(limit) < planner_timeout
