@@ -45,10 +45,12 @@ if [ "$(cat "$STAMPS/requirements" 2>/dev/null)" != "$req" ]; then
     exit 1
   fi
   say "installing Python dependencies (first time: a few minutes)"
-  set +o pipefail
-  "$VENV/bin/pip" install -q --no-cache-dir --disable-pip-version-check -r requirements.txt 2>&1 | grep -v "is ignored: it is neither"
+  # grep finds nothing to print when pip is quiet (exit 1): only pip's own status counts
+  set +e
+  "$VENV/bin/pip" install -q --no-cache-dir --disable-pip-version-check -r requirements.txt 2>&1 \
+    | { grep -v "is ignored: it is neither" || true; }
   pip_rc=${PIPESTATUS[0]}
-  set -o pipefail
+  set -e
   if [ "$pip_rc" != 0 ]; then say "ERROR: pip install -r requirements.txt failed (exit $pip_rc; see above)"; exit 1; fi
   "$VENV/bin/python" -c 'import rclpy, mujoco, casadi, pinocchio, rosbags' 
   echo "$req" > "$STAMPS/requirements"
