@@ -2,8 +2,6 @@
 (besides the node)."""
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from geometry_msgs.msg import Point, Pose, Quaternion, Vector3
 from sensor_msgs.msg import JointState
@@ -57,9 +55,10 @@ def subtasks_from_perception(contact_set, human_poses, prompts: list[str]) -> li
 
 
 def placement_goal(msg) -> PlacementGoal:
-    t = float(msg.time)
-    return PlacementGoal(msg.object_id, (msg.position.x, msg.position.y, msg.position.z), float(msg.yaw),
-                         time=t if math.isfinite(t) and t > 0.0 else None)
+    """lomanip_msgs/PlacementGoal as the TO's type (the same conversion as the TO node's)."""
+    from lomanip_to.conversions import placement_goal_from_msg
+
+    return placement_goal_from_msg(msg)
 
 
 def keyframe_array_msg(keyframes, stamp) -> KeyframeArray:
