@@ -117,3 +117,22 @@ def test_carried_box_moves_with_the_base_and_the_warm_start_has_no_jumps(g1):
     assert np.abs(X[ks + 1, 5] - X[ks, 5]).max() < 0.35
     speed = np.abs(X[ks + 1, :3] - X[ks, :3]).max(axis=1) / (data.grid.t[ks + 1] - data.grid.t[ks])
     assert speed.max() < 1.0, f"base speed {speed.max():.2f} m/s"
+
+
+def test_hands_approach_their_contacts_from_outside(g1):
+    from lomanip_to.warm_start import APPROACH_OFFSET, APPROACH_TIME, APPROACH_WEIGHT
+
+    data = ProblemData(load_problem("case_lift_box", model=g1), g1)
+    targets = hand_targets(data)
+    t = data.grid.t
+    for h in HANDS:
+        first = next(k for k in range(data.grid.K) if data.contact(k, h) is not None)
+        c = data.contact(first, h)
+        outside = np.asarray(c.position) + APPROACH_OFFSET * np.asarray(c.normal) / np.linalg.norm(c.normal)
+        before = [k for k in range(1, first) if t[first] - t[k] <= APPROACH_TIME + 1e-9]
+        assert before, "the fixture has knots just before the grasp"
+        for k in before:
+            np.testing.assert_allclose(targets[h][0][k], outside, atol=1e-9)
+            assert targets[h][1][k] == APPROACH_WEIGHT
+        earlier = [k for k in range(1, first) if k not in before]
+        assert all(targets[h][1][k] == 0 for k in earlier)  # no target further back

@@ -168,8 +168,37 @@ def footholds(data, x_nom: np.ndarray) -> dict:
     return out
 
 
+#: the knots this long (s) before a hand's touch aim the hand at a point APPROACH_OFFSET (m) outside
+#: the contact along its normal, with weight APPROACH_WEIGHT (contact knots: 1)
+APPROACH_TIME, APPROACH_OFFSET, APPROACH_WEIGHT = 0.4, 0.10, 0.3
+
+
+def _approach(data, h: str, k: int):
+    """(point, weight) of a hand with no contact at knot ``k`` that touches an object within
+    APPROACH_TIME, else None.
+
+    Why: without a target the hand follows the joint-space blend to the keyframe's arm posture; in a
+    graph plan of S1 that took the right hand under the shelf board and through it between two knots
+    on its way to the basket, and the hard hand-vs-basket row at the knot before the touch could then
+    not be met (docs/to.md, session 5)."""
+    t = data.grid.t
+    for kk in range(k + 1, data.grid.K):
+        if t[kk] - t[k] > APPROACH_TIME + 1e-9:
+            return None
+        c = data.contact(kk, h)
+        if c is None:
+            continue
+        if c.position is None or c.normal is None:
+            return None
+        n = np.asarray(c.normal, float)
+        n = n / max(np.linalg.norm(n), 1e-9)
+        return np.asarray(c.position, float) + APPROACH_OFFSET * n, APPROACH_WEIGHT
+    return None
+
+
 def hand_targets(data) -> dict:
-    """hand -> (K x 3 points, K weights): contact points following the objects' nominal poses."""
+    """hand -> (K x 3 points, K weights): contact points following the objects' nominal poses, and
+    a point outside the contact for the knots just before a touch (``_approach``)."""
     K = data.grid.K
     out = {}
     for h in HANDS:
@@ -177,6 +206,9 @@ def hand_targets(data) -> dict:
         for k in range(K):
             c = data.contact(k, h)
             if c is None:
+                a = _approach(data, h, k) if k > 0 else None
+                if a is not None:
+                    P[k], w[k] = a
                 continue
             k0 = k
             while k0 > 0 and data.contact(k0 - 1, h) is not None and data.contact(k0 - 1, h).object_id == c.object_id:
