@@ -347,7 +347,7 @@ class WholeBodyController:
                 continue
             P = np.asarray(P, float)
             a = np.gradient(np.gradient(P, tr.t, axis=0), tr.t, axis=0)
-            need = so.mass * (a + np.array([0.0, 0.0, 9.81]))
+            need = so.mass * (a - self.model.opt.gravity)  # the sim's own gravity
             need[P[:, 2] < P[0, 2] + self.g.object_lift_height] = np.nan
             out[oid] = need
         return out
