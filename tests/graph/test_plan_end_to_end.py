@@ -17,7 +17,7 @@ import time
 
 import pytest
 
-from .helpers import ROOT, graph_env, ros_process, wait_for
+from .helpers import ROOT, graph_env, ros_process, wait_for, wait_for_service
 
 pytestmark = pytest.mark.graph
 
@@ -53,7 +53,7 @@ def _plan(node, request, timeout=600.0):
     from lomanip_msgs.srv import PlanTask
 
     cli = node.create_client(PlanTask, "/lomanip/plan")
-    wait_for(cli.service_is_ready, 60, "/lomanip/plan", spin=lambda: rclpy.spin_once(node, timeout_sec=0.05))
+    wait_for_service(node, cli)
     future = cli.call_async(request)
     rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
     assert future.done(), f"/lomanip/plan did not answer within {timeout} s"

@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from .helpers import ros_process, wait_for
+from .helpers import call_idempotent, ros_process, wait_for, wait_for_service
 
 pytestmark = pytest.mark.graph
 
@@ -44,16 +44,14 @@ def node(graph):
 
 
 def _plan(node, prompts, timeout=60.0):
-    import rclpy
-
+    """These requests end quickly in an error, so a re-send (see call_idempotent) is harmless."""
     from lomanip_msgs.srv import PlanTask
 
     cli = node.create_client(PlanTask, "/lomanip/plan")
-    wait_for(cli.service_is_ready, 60, "/lomanip/plan", spin=lambda: rclpy.spin_once(node, timeout_sec=0.05))
-    future = cli.call_async(PlanTask.Request(prompts=prompts))
-    rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
-    assert future.done(), "plan service did not answer"
-    return future.result()
+    try:
+        return call_idempotent(node, cli, PlanTask.Request(prompts=prompts), timeout=timeout, attempt=20.0)
+    finally:
+        node.destroy_client(cli)
 
 
 def test_empty_prompt_list_is_invalid(graph, node):
@@ -99,7 +97,7 @@ def test_second_request_while_planning_is_busy_and_the_first_is_unharmed(graph, 
     spinner.start()
     try:
         cli = node.create_client(PlanTask, "/lomanip/plan")
-        wait_for(cli.service_is_ready, 60, "/lomanip/plan", spin=lambda: rclpy.spin_once(node, timeout_sec=0.05))
+        wait_for_service(node, cli)
         first = cli.call_async(PlanTask.Request(prompts=["pick up the box"]))
         time.sleep(1.0)
         second = cli.call_async(PlanTask.Request(prompts=["pick up the box"]))

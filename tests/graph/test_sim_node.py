@@ -6,7 +6,7 @@ import time
 import numpy as np
 import pytest
 
-from .helpers import ros_process, wait_for
+from .helpers import call_idempotent, ros_process, wait_for
 
 pytestmark = pytest.mark.graph
 
@@ -116,13 +116,8 @@ def test_scene_objects_are_latched(sim, client_node):
 
 
 def _call(node, cli, request, timeout=60.0):
-    import rclpy
-
-    wait_for(cli.service_is_ready, 60, f"service {cli.srv_name}", spin=_spin(node))
-    future = cli.call_async(request)
-    rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
-    assert future.done(), f"{cli.srv_name} did not answer in {timeout} s"
-    return future.result()
+    """Snapshots and resets may be repeated, so a lost first response is re-sent (call_idempotent)."""
+    return call_idempotent(node, cli, request, timeout=timeout, attempt=20.0)
 
 
 def test_snapshot_service(sim, client_node):

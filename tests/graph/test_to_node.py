@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from .helpers import ros_process, wait_for
+from .helpers import ros_process, wait_for, wait_for_service
 
 pytestmark = pytest.mark.graph
 
@@ -42,7 +42,7 @@ def _call(node, request, to_node, timeout=240.0):
 
     cli = node.create_client(OptimizeTrajectory, "/lomanip/to/optimize")
     proc, log = to_node
-    wait_for(cli.service_is_ready, 120, "/lomanip/to/optimize", spin=_spin(node), proc=proc, log_path=log)
+    wait_for_service(node, cli, 120, proc=proc, log_path=log)
     future = cli.call_async(request)
     rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
     assert future.done(), "no answer"

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.graph.helpers import ros_process, wait_for
+from tests.graph.helpers import call_idempotent, ros_process, wait_for
 
 pytestmark = pytest.mark.graph
 
@@ -29,13 +29,9 @@ def client():
     rclpy.try_shutdown()
 
 
-def _call(node, client, request, timeout=120.0):
-    import rclpy
-
-    future = client.call_async(request)
-    rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
-    assert future.done(), "extract_contacts did not answer"
-    return future.result()
+def _call(node, client, request, timeout=120.0, attempt=60.0):
+    """Extracting contacts may be repeated; a lost first response is re-sent (call_idempotent)."""
+    return call_idempotent(node, client, request, timeout=timeout, attempt=attempt)
 
 
 @pytest.mark.parametrize("scenario,prompts", [("s1_basket", S1), ("s2_trolley", S2)])
@@ -136,7 +132,7 @@ def test_planner_gets_contacts_from_the_perception_node(client, tmp_path):
         assert list(task.prompts) == S2
         goals = [PlacementGoal(object_id=g.object_id, position=Point(x=g.position[0], y=g.position[1], z=g.position[2]),
                                yaw=g.yaw) for g in task.placement_goals]  # fmt: skip
-        res = _call(client, cli, PlanTask.Request(prompts=S2, placement_goals=goals), timeout=240.0)
+        res = _call(client, cli, PlanTask.Request(prompts=S2, placement_goals=goals), timeout=240.0, attempt=240.0)
         text = "\n".join(p.read_text()[-1500:] for p in logs.values())
         assert [len(s.contacts) for s in res.contacts.subtasks] and len(res.contacts.subtasks) == len(S2), text
         for sub, expected in zip(res.contacts.subtasks, EXPECTED["s2_trolley"]):

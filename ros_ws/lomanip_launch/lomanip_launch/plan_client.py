@@ -103,7 +103,9 @@ def run_plan(task: Task, timeout: float, execute: bool = False, progress_bar: bo
         send = client.send_goal_async(goal_from_task(task, execute), feedback_callback=lambda m: bar.update(m.feedback))
         rclpy.spin_until_future_complete(node, send, timeout_sec=30.0)
         handle = send.result()
-        if handle is None or not handle.accepted:
+        if handle is None:
+            raise PlanClientError("the planner did not answer the goal request within 30 s")
+        if not handle.accepted:
             raise PlanClientError("the planner rejected the goal (another plan is running)")
         result_future = handle.get_result_async()
         deadline = t0 + timeout
