@@ -59,6 +59,18 @@ class Progress:
     message: str = ""
 
 
+def _speeds(pelvis_track: list[tuple[float, np.ndarray]], joints: JointState) -> tuple[float | None, float]:
+    """Pelvis speed over the last >= 0.2 s of /tf (None until that much is seen) and the largest joint speed."""
+    joint_speed = float(np.max(np.abs(joints.velocity))) if len(joints.velocity) else 0.0
+    if len(pelvis_track) < 2:
+        return None, joint_speed
+    t1, p1 = pelvis_track[-1]
+    for t0, p0 in reversed(pelvis_track[:-1]):
+        if t1 - t0 >= 0.2:
+            return float(np.linalg.norm(p1 - p0) / (t1 - t0)), joint_speed
+    return None, joint_speed
+
+
 class PlannerNode(Node):
     def __init__(self) -> None:
         super().__init__("lomanip_planner")
@@ -66,6 +78,11 @@ class PlannerNode(Node):
                          for stage, default in (("state", 10.0), ("reset", 60.0), ("perception", 300.0), ("retargeting", 60.0),
                                                 ("optimisation", 900.0), ("execution", 600.0))}
         self.push_distance = float(self.declare_parameter("push_distance", 0.25).value)
+        # Plan from a robot that stands still: after a reset the standing controller moves the pelvis
+        # about 2 cm over 1.5 s, and planning from a moving snapshot made keyframes differ run to run.
+        self.settle_timeout = float(self.declare_parameter("settle_timeout", 10.0).value)
+        self.settle_base_speed = float(self.declare_parameter("settle_base_speed", 0.005).value)
+        self.settle_joint_speed = float(self.declare_parameter("settle_joint_speed", 0.02).value)
         from .retargeting import Retargeter
 
         self.retargeter = Retargeter()
@@ -108,10 +125,22 @@ class PlannerNode(Node):
                 self._pelvis = t.transform
 
     def _wait_for_state(self) -> None:
-        """The robot's current joints and pelvis pose, from fresh /joint_states and /tf messages."""
+        """The robot's current joints and pelvis pose, from fresh /joint_states and /tf messages,
+        once the robot stands still (or after ``settle_timeout`` s, with a warning)."""
         self._joints = self._pelvis = None
+        pelvis_track: list[tuple[float, np.ndarray]] = []
+
+        def on_tf(msg: TFMessage) -> None:
+            self._on_tf(msg)
+            for t in msg.transforms:
+                if t.header.frame_id == "world" and t.child_frame_id == "pelvis":
+                    stamp = t.header.stamp.sec + 1e-9 * t.header.stamp.nanosec
+                    p = t.transform.translation
+                    pelvis_track.append((stamp, np.array([p.x, p.y, p.z])))
+                    del pelvis_track[:-50]
+
         subs = [self.create_subscription(JointState, "/joint_states", self._on_joints, 10, callback_group=self._group),
-                self.create_subscription(TFMessage, "/tf", self._on_tf, 10, callback_group=self._group)]
+                self.create_subscription(TFMessage, "/tf", on_tf, 10, callback_group=self._group)]
         try:
             deadline = time.monotonic() + self.timeouts["state"]
             while self._scene is None or self._joints is None or self._pelvis is None:
@@ -120,6 +149,19 @@ class PlannerNode(Node):
                                                     ("/tf world->pelvis", self._pelvis)) if v is None]
                     raise PlanFailed(ErrorCode.NOT_READY, f"no data from the simulator on {', '.join(missing)} "
                                      f"after {self.timeouts['state']:.0f} s; is lomanip_sim running?")
+                time.sleep(0.05)
+            t0 = time.monotonic()
+            while True:
+                base, joints = _speeds(pelvis_track, self._joints)
+                if base is not None and base < self.settle_base_speed and joints < self.settle_joint_speed:
+                    self.get_logger().info(f"robot still after {time.monotonic() - t0:.1f} s (pelvis {base * 1e3:.1f} mm/s, "
+                                           f"joints up to {joints:.3f} rad/s)")
+                    return
+                if time.monotonic() - t0 > self.settle_timeout:
+                    self.get_logger().warning(
+                        f"robot still moving after {self.settle_timeout:.0f} s (pelvis {1e3 * (base or 0.0):.1f} mm/s, "
+                        f"joints up to {joints:.3f} rad/s); planning from its current state")
+                    return
                 time.sleep(0.05)
         finally:
             for sub in subs:
