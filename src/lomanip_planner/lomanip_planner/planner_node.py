@@ -81,8 +81,8 @@ class PlannerNode(Node):
         # Plan from a robot that stands still: after a reset the standing controller moves the pelvis
         # about 2 cm over 1.5 s, and planning from a moving snapshot made keyframes differ run to run.
         self.settle_timeout = float(self.declare_parameter("settle_timeout", 10.0).value)
-        self.settle_base_speed = float(self.declare_parameter("settle_base_speed", 0.005).value)
-        self.settle_joint_speed = float(self.declare_parameter("settle_joint_speed", 0.02).value)
+        self.settle_base_speed = float(self.declare_parameter("settle_base_speed", 0.001).value)
+        self.settle_joint_speed = float(self.declare_parameter("settle_joint_speed", 0.01).value)
         from .retargeting import Retargeter
 
         self.retargeter = Retargeter()
