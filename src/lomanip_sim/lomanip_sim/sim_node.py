@@ -234,10 +234,10 @@ class SimNode(Node):
             transforms.append(conv.transform_msg(stamp, "world", obj.id, obj.pos, obj.quat))
         self.pub_tf.publish(TFMessage(transforms=transforms))
 
-    def _publish_scene(self) -> None:
+    def _publish_scene(self, objects=None) -> None:
         stamp = self.get_clock().now().to_msg()
-        self.pub_scene.publish(conv.scene_objects_msg(stamp, self.params.name, self.params.to_yaml(),
-                                                      self.sim.scene_objects()))
+        objects = self.sim.scene_objects() if objects is None else objects
+        self.pub_scene.publish(conv.scene_objects_msg(stamp, self.params.name, self.params.to_yaml(), objects))
         cam_pos, cam_quat = self._camera_optical_pose()
         self.pub_tf_static.publish(TFMessage(transforms=[
             conv.transform_msg(stamp, "world", OPTICAL_FRAME, cam_pos, cam_quat)]))
@@ -275,13 +275,17 @@ class SimNode(Node):
                 self.sim.reset(params)
                 self.params = params
                 self._camera_generation += 1
+                # one snapshot of the objects as placed, before physics steps again: the latched topic
+                # (perception) and the response (planner) then carry the same poses, and the same
+                # request gives the same scene on every run (the retargeting IK turns even 1e-11 m
+                # differences into different keyframes)
+                placed = self.sim.scene_objects()
         except Exception as exc:  # a world that fails to build must not kill the node
             response.error_code = ErrorCode(val=ErrorCode.INVALID_REQUEST, message=f"cannot build world: {exc}")
             self.get_logger().error(response.error_code.message)
             return response
-        self._publish_scene()
-        response.scene = conv.scene_objects_msg(self.get_clock().now().to_msg(), params.name, params.to_yaml(),
-                                                self.sim.scene_objects())
+        self._publish_scene(placed)
+        response.scene = conv.scene_objects_msg(self.get_clock().now().to_msg(), params.name, params.to_yaml(), placed)
         response.error_code = ErrorCode(val=ErrorCode.SUCCESS, message="")
         self.get_logger().info(f"reset to {params.name} with {overrides or 'default parameters'}")
         return response
