@@ -46,6 +46,12 @@ GUIDE_STAGE_MAX_ITER = 300
 #: tolerances, the last ~180 of them reducing the objective from 279 to 138 at constant violation)
 GUIDE_STAGE_TOLERANCES = {"tol": 1e-2, "acceptable_tol": 1e-1, "acceptable_constr_viol_tol": 1e-2,
                           "acceptable_iter": 3}
+#: A converged guide hands the final stage a primal-dual warm start (barrier 1e-4) only when its
+#: point violates the final stage's rows by at most this much.  Farther away, the small barrier
+#: sent S1's first subtask from the graph (keyframes of session 6) wandering (objective 150 -> 8e3)
+#: into a MUMPS factorisation that stalled for minutes; started cold from the same point the stage
+#: took 178 iterations, 48 s.
+WARM_START_MAX_VIOLATION = 1e-2
 #: horizons up to this many knots are solved in one piece (segmenting only pays for long tasks)
 SEGMENT_MIN_KNOTS = 60
 
@@ -233,8 +239,10 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
                 o["max_iter"] = min(int(o["max_iter"]), GUIDE_STAGE_MAX_ITER)
                 o.update(GUIDE_STAGE_TOLERANCES)
                 tag = "guide"
-        elif lam_x is not None and warm_ok:
-            # the previous stage converged: primal-dual warm start with a small barrier
+        elif lam_x is not None and warm_ok and _start_violation(
+                wd, data, K, threads, win, z0, args, hom) <= WARM_START_MAX_VIOLATION:
+            # the previous stage converged near this one's feasible set: primal-dual warm start
+            # with a small barrier
             args["x0"] = np.clip(z0, args["lbx"], args["ubx"])
             args["lam_x0"], args["lam_g0"] = lam_x, lam_g
             o, tag = _warm_options(base), "warm"
@@ -268,7 +276,8 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
             status = STALLED_STATUS
         warm_ok = _converged(status)
         reg = np.asarray(st.get("iterations", {}).get("regularization_size", []), float)
-        run.stages.append({"stage": stage_name, "exponent": expo, "hard": hard, "status": status,
+        start = "warm" if tag == "warm" else ("cold" if z0 is not None else "keyframes")
+        run.stages.append({"stage": stage_name, "exponent": expo, "hard": hard, "status": status, "start": start,
                            "iterations": int(st.get("iter_count", 0)), "time": dt, "timing": _timing_split(st, dt),
                            "regularised_iterations": int(np.count_nonzero(reg > 0))})
         z0 = np.array(sol["x"]).ravel()
@@ -282,6 +291,18 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
             status = f"time limit {opt.time_limit:.0f} s reached"
             break
     return z0, lam_x, lam_g, status, nlp, args, Pm, lbg, ubg, f_sol
+
+
+def _start_violation(wd, data: ProblemData, K: int, threads: int, win, z0, args: dict, hom: bool) -> float:
+    """Largest violation of a stage's rows at the previous stage's point (slacks raised as the stage
+    itself will raise them)."""
+    nlp = get_nlp(wd, data.structure, K, threads)
+    x0 = np.clip(z0, args["lbx"], args["ubx"])
+    if hom:
+        x0 = np.clip(_feasible_slacks(win, nlp, K, x0, args["p"]), args["lbx"], args["ubx"])
+    _, g = nlp.F_nlp(x0, args["p"])
+    g = np.array(g).ravel()
+    return float(np.max(np.maximum(np.maximum(args["lbg"] - g, g - args["ubg"]), 0.0), initial=0.0))
 
 
 def _scatter(values: np.ndarray, rows: np.ndarray, n: int) -> np.ndarray:
