@@ -90,6 +90,7 @@ class PlannerNode(Node):
         self._scene: SceneObjects | None = None
         self._joints: JointState | None = None
         self._pelvis = None
+        self._pelvis_track: list[tuple[float, np.ndarray]] = []   # (stamp s, position) while waiting for state
         self._to_progress: Callable[[SolverStatistics], None] | None = None
         group = self._group = ReentrantCallbackGroup()
         self.create_subscription(SceneObjects, "/lomanip/scene_objects", self._on_scene, LATCHED, callback_group=group)
@@ -123,24 +124,17 @@ class PlannerNode(Node):
         for t in msg.transforms:
             if t.header.frame_id == "world" and t.child_frame_id == "pelvis":
                 self._pelvis = t.transform
+                p = t.transform.translation
+                self._pelvis_track.append((t.header.stamp.sec + 1e-9 * t.header.stamp.nanosec, np.array([p.x, p.y, p.z])))
+                del self._pelvis_track[:-50]
 
     def _wait_for_state(self) -> None:
         """The robot's current joints and pelvis pose, from fresh /joint_states and /tf messages,
         once the robot stands still (or after ``settle_timeout`` s, with a warning)."""
         self._joints = self._pelvis = None
-        pelvis_track: list[tuple[float, np.ndarray]] = []
-
-        def on_tf(msg: TFMessage) -> None:
-            self._on_tf(msg)
-            for t in msg.transforms:
-                if t.header.frame_id == "world" and t.child_frame_id == "pelvis":
-                    stamp = t.header.stamp.sec + 1e-9 * t.header.stamp.nanosec
-                    p = t.transform.translation
-                    pelvis_track.append((stamp, np.array([p.x, p.y, p.z])))
-                    del pelvis_track[:-50]
-
+        self._pelvis_track.clear()
         subs = [self.create_subscription(JointState, "/joint_states", self._on_joints, 10, callback_group=self._group),
-                self.create_subscription(TFMessage, "/tf", on_tf, 10, callback_group=self._group)]
+                self.create_subscription(TFMessage, "/tf", self._on_tf, 10, callback_group=self._group)]
         try:
             deadline = time.monotonic() + self.timeouts["state"]
             while self._scene is None or self._joints is None or self._pelvis is None:
@@ -152,7 +146,7 @@ class PlannerNode(Node):
                 time.sleep(0.05)
             t0 = time.monotonic()
             while True:
-                base, joints = _speeds(pelvis_track, self._joints)
+                base, joints = _speeds(self._pelvis_track, self._joints)
                 if base is not None and base < self.settle_base_speed and joints < self.settle_joint_speed:
                     self.get_logger().info(f"robot still after {time.monotonic() - t0:.1f} s (pelvis {base * 1e3:.1f} mm/s, "
                                            f"joints up to {joints:.3f} rad/s)")
