@@ -22,12 +22,13 @@ from typing import Mapping, Sequence
 import lomanip_sim  # noqa: F401  (headless GL default before mujoco loads)
 import mink
 import mujoco
-from mink.exceptions import NoSolutionFound
 import numpy as np
 
 from lomanip_sim import frames
 from lomanip_sim.robot_model import G1_JOINT_NAMES
 from lomanip_sim.world import build_robot_model
+
+from .ik import ComOverFeetTask, DescentResult, PelvisFloorTask, minimise
 
 #: lomanip_msgs/ErrorCode values used here.
 RETARGETING_INFEASIBLE = -5
@@ -167,11 +168,11 @@ def _finite(v, n: int, what: str) -> np.ndarray:
 class Retargeter:
     """Solves keyframes by differential IK; build once, call :meth:`solve` per keyframe."""
 
-    def __init__(self, max_iterations: int = 400, dt: float = 0.05, contact_tolerance: float = 0.01,
+    def __init__(self, max_iterations: int = 400, screen_iterations: int = 100, contact_tolerance: float = 0.01,
                  solver: str = "daqp") -> None:
         self.model = build_robot_model()
         self.max_iterations = max_iterations
-        self.dt = dt
+        self.screen_iterations = min(screen_iterations, max_iterations)
         self.contact_tolerance = contact_tolerance
         self.solver = solver
         self.configuration = mink.Configuration(self.model)
@@ -187,7 +188,7 @@ class Retargeter:
             for limb in LIMBS
         }
         self.base_task = mink.FrameTask("pelvis", "body", position_cost=0.0, orientation_cost=5.0)
-        self.com_task = mink.ComTask(cost=[1.0, 1.0, 0.0])
+        self.com_task = ComOverFeetTask(FEET, cost=1.0)
         self.posture_task = mink.PostureTask(self.model, cost=1e-2)
         self._pairs = self._collision_pairs()
         self.limits = [mink.ConfigurationLimit(self.model),
@@ -244,17 +245,28 @@ class Retargeter:
                 q = self._seed(name, feet, base_R)
                 q[0:2] = (hands_mid - reach * base_R[:, 0])[:2]
                 starts.append(q)
-        best: tuple[tuple[bool, float], np.ndarray] | None = None
+        # Every start descends towards a local minimum of the same weighted task cost; the keyframe
+        # is the collision-free one that reaches its contacts with the lowest cost (the first start
+        # alone often ends bent over a box the human squatted to). Starts are compared after
+        # ``screen_iterations``; the best one then descends on to ``max_iterations``.
+        def score(outcome: DescentResult) -> tuple[bool, bool, float]:
+            worst = max(self._residuals(targets).values())
+            return self._min_self_distance() < 0.0, worst > self.contact_tolerance, outcome.cost
+
+        best: tuple[tuple[bool, bool, float], np.ndarray, DescentResult] | None = None
         iterations_total = 0
         for q0 in starts:
-            q, iterations = self._descend(target, targets, base_R, feet, q0)
-            iterations_total += iterations
-            worst = max(self._residuals(targets).values())
-            score = (self._min_self_distance() < 0.0, worst)   # collision-free first, then closest
-            if best is None or score < best[0]:
-                best = (score, q)
-            if not score[0] and worst <= self.contact_tolerance:
-                break
+            q, outcome = self._descend(target, targets, base_R, feet, q0, self.screen_iterations)
+            iterations_total += outcome.iterations
+            candidate = (score(outcome), q, outcome)
+            if best is None or candidate[0] < best[0]:
+                best = candidate
+        if not best[2].converged and self.max_iterations > self.screen_iterations:
+            q, outcome = self._descend(target, targets, base_R, feet, best[1],
+                                       self.max_iterations - self.screen_iterations)
+            iterations_total += outcome.iterations
+            if score(outcome) <= best[0]:
+                best = (score(outcome), q, outcome)
         self.configuration.update(best[1])
         return self._result(targets, iterations_total, time.perf_counter() - t0)
 
@@ -284,16 +296,15 @@ class Retargeter:
         return q
 
     def _descend(self, target: RetargetTarget, targets: dict[str, LimbTarget], base_R: np.ndarray,
-                 feet: list[LimbTarget], q0: np.ndarray) -> tuple[np.ndarray, int]:
+                 feet: list[LimbTarget], q0: np.ndarray, max_iterations: int) -> tuple[np.ndarray, DescentResult]:
         self.configuration.update(q0)
 
-        tasks = [self.base_task, self.posture_task]
-        pelvis_z = None   # a floor under the pelvis: one-sided, switched on while the pelvis is below it
-        if target.pelvis_height_ratio is not None and feet:
-            pelvis_z = float(np.mean([t.position[2] for t in feet])) + target.pelvis_height_ratio * self.leg_length
-        self.base_task.set_position_cost(np.zeros(3))
+        tasks: list[mink.Task] = [self.base_task, self.posture_task]
         self.base_task.set_target(mink.SE3.from_rotation_and_translation(
-            mink.SO3(frames.matrix_to_quat(base_R)), np.array([0.0, 0.0, pelvis_z or 0.0])))
+            mink.SO3(frames.matrix_to_quat(base_R)), np.zeros(3)))
+        if target.pelvis_height_ratio is not None and feet:   # a soft floor under the pelvis
+            pelvis_z = float(np.mean([t.position[2] for t in feet])) + target.pelvis_height_ratio * self.leg_length
+            tasks.append(PelvisFloorTask(pelvis_z, PELVIS_HEIGHT_COST))
         posture = self.stand.copy()
         for name, angle in target.joint_prior.items():
             if name not in G1_JOINT_NAMES:
@@ -310,31 +321,11 @@ class Retargeter:
             p = t.position + (self.sole_offset * t.normal / np.linalg.norm(t.normal) if limb in FEET else 0.0)
             task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3(frames.matrix_to_quat(R)), p))
             tasks.append(task)
-        if len(feet) == 2:
-            mid = np.mean([t.position for t in feet], axis=0)
-            self.com_task.set_target(np.array([mid[0], mid[1], 0.0]))
+        if len(feet) == 2:   # balance over where the feet are (they may slide)
             tasks.append(self.com_task)
-
-        iterations = 0
-        for iterations in range(1, self.max_iterations + 1):
-            if self._sliding and len(feet) == 2:   # balance over where the feet are now, not their old targets
-                mid = np.mean([self.configuration.data.site(f).xpos for f in FEET], axis=0)
-                self.com_task.set_target(np.array([mid[0], mid[1], 0.0]))
-            if pelvis_z is not None:
-                below = self.configuration.data.body("pelvis").xpos[2] < pelvis_z
-                self.base_task.set_position_cost(np.array([0.0, 0.0, PELVIS_HEIGHT_COST if below else 0.0]))
-            try:
-                vel = mink.solve_ik(self.configuration, tasks, self.dt, self.solver, damping=1e-3, limits=self.limits)
-            except NoSolutionFound:
-                # the velocity limits admit no step from here (seen on S1 with the pelvis height
-                # bound): this start ends where it is; solve() scores it and tries the next one
-                break
-            self.configuration.integrate_inplace(vel, self.dt)
-            if iterations % 10 == 0:
-                res = self._residuals(targets)
-                if max(res.values(), default=0.0) < 0.2 * self.contact_tolerance and np.linalg.norm(vel) < 1e-2:
-                    break
-        return self.configuration.q.copy(), iterations
+        outcome = minimise(self.configuration, tasks, self.limits, solver=self.solver,
+                           max_iterations=max_iterations)
+        return self.configuration.q.copy(), outcome
 
     @staticmethod
     def _foot_position_cost(target: RetargetTarget, t: LimbTarget) -> np.ndarray:
