@@ -1,6 +1,8 @@
 """Retargeting (paper Sec. III-A3): contacts + a human pose -> a feasible 35-D G1 keyframe.
 
-Differential IK with mink on the same G1 model the simulator uses (g1.xml + hand sites):
+IK on the same G1 model the simulator uses (g1.xml + hand sites): mink's tasks and limits, with
+its QP step used inside a Levenberg-Marquardt descent (``lomanip_planner.ik``) so the keyframe is a
+(local) minimum of one weighted task cost and moves continuously with its targets:
 
 * hand and foot contacts are the primary tasks (high weight); a keyframe is accepted only if every
   contact is reached within ``contact_tolerance`` (1 cm by default);
@@ -9,6 +11,9 @@ Differential IK with mink on the same G1 model the simulator uses (g1.xml + hand
 * the human joint angles mapped onto the G1's matching joints act as a posture regulariser
   (HumanPlus-style: only joints with a counterpart are used);
 * the CoM is pulled over the mid-foot point so stance keyframes are statically plausible;
+* the pelvis is pulled up to the human's pelvis height (relative to leg length), never down;
+* several starts (the current pose, standing, squatting, arms up, in front of the hands' targets)
+  descend; the collision-free one that reaches its contacts with the lowest cost wins;
 * joint limits and self-collision (arms vs torso, leg vs leg, hands vs thighs) are hard limits.
 
 Simplification (named): hand orientation is not constrained (point contacts, as in the TO).
