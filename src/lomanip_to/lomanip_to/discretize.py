@@ -552,7 +552,10 @@ class ProblemData:
                 elif mode == "free":  # carried: roll and pitch within CARRY_TILT
                     setb(f"o{j}_pose", k, [-INF, -INF, -INF, -CARRY_TILT, -CARRY_TILT, -INF],
                          [INF, INF, INF, CARRY_TILT, CARRY_TILT, INF])
-            setb("slack", k, 0, INF if homotopy else 0)
+            # a slack whose pair is off at this knot has no row and no cost: left free, the barrier
+            # alone pushed it up without end (S1's carry: 4.3 after 700 iterations), so pin it
+            setb("slack", k, 0, np.array([INF if homotopy and self._pair_enabled(k, s, oid) else 0.0
+                                          for s, (oid, _) in self.pairs]))
         # start and end at rest: only xd is bounded (bounding the momenta too would leave the CMM
         # rows of these knots with an all-zero Jacobian -> degenerate, slow ipopt convergence)
         setb("xd", 0, 0, 0)
@@ -632,7 +635,7 @@ class ProblemData:
             for i, (s, (oid, pi)) in enumerate(self.pairs):
                 on = self._pair_enabled(k, s, oid)
                 rows(f"c{i} collision", k, 0 if (hard and on) else -INF, INF)
-                rows(f"c{i} homotopy surrogate", k, 0 if (homotopy and on) else -INF, INF)
+                rows(f"c{i} homotopy surrogate", k, 0 if (homotopy and self._pair_enabled(k, s, oid)) else -INF, INF)
             for (a, b) in win.st.self_pairs:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
             rows("floor clearance", k, 0, INF)  # smooth, so on in every homotopy stage
@@ -952,4 +955,4 @@ class ProblemData:
         col[P[f"c{i}_half"]] = pr.half_extents()
         on = self._pair_enabled(k, s, oid)
         col[P[f"c{i}_w"]] = [self.w["w_pen"] if (penalty and on) else 0.0,
-                             self.w["w_hom"] if (homotopy and on) else 0.0, expo]
+                             self.w["w_hom"] if (homotopy and self._pair_enabled(k, s, oid)) else 0.0, expo]
