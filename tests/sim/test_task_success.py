@@ -73,7 +73,7 @@ def test_s2_box_on_trolley_and_distance(s2, moved, expect):
     p0 = initial["trolley"][0]
     planned = np.array([p0, p0 + [0.15, 0, 0], p0 + [0.30, 0, 0]])
     quats = np.tile([1.0, 0, 0, 0], (3, 1))
-    plan = _plan("s2_trolley", objects={"trolley": (planned, quats)})
+    plan = _plan("s2_trolley", objects={"trolley": (planned, quats), "box": _box_to_deck(initial)})
     d = s2.data
     t, b = _free_qpos(s2, "trolley"), _free_qpos(s2, "box")
     d.qpos[t] += moved
@@ -88,9 +88,35 @@ def test_s2_fails_with_box_still_on_table(s2):
     s2.reset()
     initial = {oid: s2.object_pose(oid) for oid in s2.world.objects}
     p0 = initial["trolley"][0]
-    plan = _plan("s2_trolley", objects={"trolley": (np.array([p0, p0, p0 + [0.3, 0, 0]]), np.tile([1.0, 0, 0, 0], (3, 1)))})
+    plan = _plan("s2_trolley", objects={"trolley": (np.array([p0, p0, p0 + [0.3, 0, 0]]), np.tile([1.0, 0, 0, 0], (3, 1))),
+                                        "box": _box_to_deck(initial)})
     out = evaluate(s2, plan, initial, fell=False)
     assert not out.success and "box NOT on the trolley" in out.detail
+
+
+def _box_to_deck(initial):
+    b0, t0 = initial["box"][0], initial["trolley"][0]
+    return np.array([b0, b0 + [0, 0, 0.2], t0 + [0, 0, 0.48]]), np.tile([1.0, 0, 0, 0], (3, 1))
+
+
+@pytest.mark.parametrize("box_shift, expect", [(0.0, True), (0.10, False)])
+def test_s2_push_only_plan_is_judged_on_the_push(s2, box_shift, expect):
+    """A plan that only pushes the trolley (make demo's task) does not need the box on the deck,
+    but must not knock it off where it was."""
+    s2.reset()
+    initial = {oid: s2.object_pose(oid) for oid in s2.world.objects}
+    p0 = initial["trolley"][0]
+    plan = _plan("s2_trolley", objects={"trolley": (np.array([p0, p0, p0 + [0.25, 0, 0]]), np.tile([1.0, 0, 0, 0], (3, 1)))})
+    d = s2.data
+    t, b = _free_qpos(s2, "trolley"), _free_qpos(s2, "box")
+    d.qpos[t] += 0.27
+    d.qpos[b] += box_shift
+    mujoco.mj_forward(s2.model, d)
+    out = evaluate(s2, plan, initial, fell=False)
+    assert out.success is expect, out.detail
+    assert f"box not moved by the plan, {box_shift * 100:.1f} cm from where it was" in out.detail
+    assert "trolley moved 0.27 m forward, planned 0.25 m" in out.detail
+    assert not evaluate(s2, plan, initial, fell=True).success
 
 
 def test_generic_definition(s1):

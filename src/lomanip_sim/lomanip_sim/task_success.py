@@ -8,7 +8,10 @@ Definitions (also in docs/execution.md):
 * S2 trolley (``s2_trolley``): the box rests on the trolley deck (box bottom within 3 cm of the deck
   top, box centre inside the deck footprint, box speed relative to the trolley below 0.1 m/s), AND
   the trolley moved forward along its initial heading by the planned distance within
-  max(5 cm, 25 % of it), AND the robot has not fallen.
+  max(5 cm, 25 % of it), AND the robot has not fallen. A plan of part of S2 is judged on its part:
+  where the plan does not move the box (a push-only task, e.g. ``make demo``'s), the box must stay
+  within 5 cm of where it was instead of being on the deck; where it does not move the trolley,
+  the trolley must stay within 5 cm.
 * Any other plan (test cases): the robot has not fallen, its final pelvis position is within
   0.10 m of the plan's final one, and every object the plan moves ends within 0.05 m of its planned
   final position.
@@ -27,6 +30,7 @@ S1_MIN_LIFT = 0.10
 S2_DECK_TOL = 0.03
 S2_MIN_DIST_TOL = 0.05
 S2_REL_DIST_TOL = 0.25
+S2_UNPLANNED_TOL = 0.05   # an object the plan does not move may drift this much
 GENERIC_BASE_TOL = 0.10
 GENERIC_OBJECT_TOL = 0.05
 
@@ -83,29 +87,46 @@ def _s1(sim, initial, fell) -> TaskOutcome:
                        + "; ".join(notes) + ("; robot fell" if fell else ""))
 
 
+def _planned_displacement(traj: Trajectory, oid: str) -> np.ndarray:
+    if oid not in traj.objects:
+        return np.zeros(3)
+    p = traj.objects[oid][0]
+    return np.asarray(p[-1] - p[0], float)
+
+
 def _s2(sim, traj: Trajectory, initial, fell) -> TaskOutcome:
     box, trolley = sim.object_state("box"), sim.object_state("trolley")
-    bottom = box.pos.copy()
-    bt = _top_box(sim.world.objects["box"])
-    if bt is not None:
-        bottom[2] -= bt[2]  # box frame at its centre: top z = half height
-    inside, h = _inside(sim, "trolley", bottom, margin=0.0)
-    rel_speed = float(np.linalg.norm(box.linvel - trolley.linvel))
-    on = inside and abs(h) <= S2_DECK_TOL and rel_speed < 0.1
+    notes = []
+    if np.linalg.norm(_planned_displacement(traj, "box")) > S2_UNPLANNED_TOL:
+        bottom = box.pos.copy()
+        bt = _top_box(sim.world.objects["box"])
+        if bt is not None:
+            bottom[2] -= bt[2]  # box frame at its centre: top z = half height
+        inside, h = _inside(sim, "trolley", bottom, margin=0.0)
+        rel_speed = float(np.linalg.norm(box.linvel - trolley.linvel))
+        box_ok = inside and abs(h) <= S2_DECK_TOL and rel_speed < 0.1
+        notes.append(f"box {'on' if box_ok else 'NOT on'} the trolley (bottom {h * 100:.1f} cm from the deck, "
+                     f"inside={inside}, relative speed {rel_speed:.2f} m/s)")
+    else:
+        drift = float(np.linalg.norm(box.pos - initial["box"][0]))
+        box_ok = drift <= S2_UNPLANNED_TOL
+        notes.append(f"box not moved by the plan, {drift * 100:.1f} cm from where it was "
+                     f"(tolerance {S2_UNPLANNED_TOL * 100:.0f} cm)")
     p0, q0 = initial["trolley"]
     heading = frames.quat_to_matrix(q0)[:, 0]
     moved = float((trolley.pos - p0) @ heading)
-    if "trolley" in traj.objects:
-        tp = traj.objects["trolley"][0]
-        planned = float((tp[-1] - tp[0]) @ heading)
+    planned = float(_planned_displacement(traj, "trolley") @ heading)
+    if planned > S2_UNPLANNED_TOL:
+        tol = max(S2_MIN_DIST_TOL, S2_REL_DIST_TOL * abs(planned))
+        trolley_ok = abs(moved - planned) <= tol
+        notes.append(f"trolley moved {moved:.2f} m forward, planned {planned:.2f} m (tolerance {tol:.2f} m)")
     else:
-        planned = 0.0
-    tol = max(S2_MIN_DIST_TOL, S2_REL_DIST_TOL * abs(planned))
-    dist_ok = planned > 0 and abs(moved - planned) <= tol
-    ok = on and dist_ok and not fell
-    return TaskOutcome(ok, f"S2: box {'on' if on else 'NOT on'} the trolley (bottom {h * 100:.1f} cm from the deck, "
-                       f"inside={inside}, relative speed {rel_speed:.2f} m/s); trolley moved {moved:.2f} m forward, "
-                       f"planned {planned:.2f} m (tolerance {tol:.2f} m)" + ("; robot fell" if fell else ""))
+        drift = float(np.linalg.norm(trolley.pos - p0))
+        trolley_ok = drift <= S2_UNPLANNED_TOL
+        notes.append(f"trolley not pushed by the plan, {drift * 100:.1f} cm from where it was "
+                     f"(tolerance {S2_UNPLANNED_TOL * 100:.0f} cm)")
+    ok = box_ok and trolley_ok and not fell
+    return TaskOutcome(ok, "S2: " + "; ".join(notes) + ("; robot fell" if fell else ""))
 
 
 def _generic(sim, traj: Trajectory, fell) -> TaskOutcome:
