@@ -171,7 +171,7 @@ def _finite(v, n: int, what: str) -> np.ndarray:
 
 
 class Retargeter:
-    """Solves keyframes by differential IK; build once, call :meth:`solve` per keyframe."""
+    """Solves keyframes by IK (a descent on mink's QP); build once, call :meth:`solve` per keyframe."""
 
     def __init__(self, max_iterations: int = 400, screen_iterations: int = 100, contact_tolerance: float = 0.01,
                  solver: str = "daqp") -> None:
@@ -270,8 +270,9 @@ class Retargeter:
             q, outcome = self._descend(target, targets, base_R, feet, best[1],
                                        self.max_iterations - self.screen_iterations)
             iterations_total += outcome.iterations
-            if score(outcome) <= best[0]:
-                best = (score(outcome), q, outcome)
+            refined = score(outcome)
+            if refined <= best[0]:
+                best = (refined, q, outcome)
         self.configuration.update(best[1])
         return self._result(targets, iterations_total, time.perf_counter() - t0)
 

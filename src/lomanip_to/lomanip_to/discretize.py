@@ -635,7 +635,7 @@ class ProblemData:
             for i, (s, (oid, pi)) in enumerate(self.pairs):
                 on = self._pair_enabled(k, s, oid)
                 rows(f"c{i} collision", k, 0 if (hard and on) else -INF, INF)
-                rows(f"c{i} homotopy surrogate", k, 0 if (homotopy and self._pair_enabled(k, s, oid)) else -INF, INF)
+                rows(f"c{i} homotopy surrogate", k, 0 if (homotopy and on) else -INF, INF)
             for (a, b) in win.st.self_pairs:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
             rows("floor clearance", k, 0, INF)  # smooth, so on in every homotopy stage
@@ -955,4 +955,4 @@ class ProblemData:
         col[P[f"c{i}_half"]] = pr.half_extents()
         on = self._pair_enabled(k, s, oid)
         col[P[f"c{i}_w"]] = [self.w["w_pen"] if (penalty and on) else 0.0,
-                             self.w["w_hom"] if (homotopy and self._pair_enabled(k, s, oid)) else 0.0, expo]
+                             self.w["w_hom"] if (homotopy and on) else 0.0, expo]
