@@ -47,12 +47,16 @@ def test_s1_schedule_is_valid_for_the_to():
     sched = plan_schedule(stance, _s1_subtasks(), Timing())
     phases = sched.phases
     assert phases[0].start == 0.0 and all(a.end == pytest.approx(b.start) for a, b in zip(phases, phases[1:]))
-    # Single support while walking, the box moves only while held, it rests after the placement.
+    # Single support while walking, the box is free only while held; set down, it rests on the
+    # floor (supported) to the end of the placing subtask.
     for ph in phases:
         feet = [l for l in ph.contacts if l.endswith("foot")]
         assert len(feet) == (1 if ph.phase_type == WALKING else 2)
-        if "box" in ph.objects:
+        if "box" in ph.objects and ph.objects["box"].mode == "free":
             assert {"left_hand", "right_hand"} <= set(ph.contacts)
+    after = [ph for ph in phases if ph.subtask_index == 1 and ph.start >= sched.placement_goals[0].time - 1e-9]
+    assert after and all(ph.objects["box"].mode == "supported" and ph.objects["box"].support == FLOOR for ph in after)
+    assert any("left_hand" in ph.contacts for ph in after) and "left_hand" not in after[-1].contacts
     walking_with_box = [ph for ph in phases if ph.phase_type == WALKING and "box" in ph.objects]
     assert walking_with_box and all(ph.subtask_index == 1 for ph in walking_with_box)
     last = phases[-1]
@@ -85,6 +89,33 @@ def test_push_makes_a_rolling_object_move_while_walking():
     # the push ends where the goal holds, the feet 0.5 m further on
     g = sched.placement_goals[0]
     assert g.object_id == "trolley" and g.time == pytest.approx(moving[-1].end)
+
+
+def test_an_object_placed_on_the_trolley_rests_on_it_then_rides_on_it_during_the_push():
+    stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+    trolley = SceneObject("trolley", "trolley", True, (1.0, 0.0, 0.0), mass=10.0,
+                          primitives=[Primitive("box", (0.6, 0.4, 0.1), position=(0.0, 0.0, 0.45))])
+    box = SceneObject("box", "box", True, (0.42, 0.0, 0.15), mass=2.5, primitives=[Primitive("box", (0.3, 0.3, 0.3))])
+    q = G1_STAND_QPOS.copy()
+    on_deck = (1.0, 0.0, 0.5 + 0.15)        # deck top 0.5 m, box half height 0.15 m
+    subtasks = [SubtaskKeyframe(0, "pick up the box", q, _feet(0.0) + _hands(0.42, 0.15, "box", half=0.15)),
+                SubtaskKeyframe(1, "place the box on the trolley", q, _feet(0.55) + _hands(1.0, 0.65, "box", half=0.15),
+                                placement=PlacementGoal("box", on_deck, 0.0)),
+                SubtaskKeyframe(2, "push the trolley forward", q, _feet(0.55) + _hands(0.75, 0.8, "trolley"),
+                                rolling_objects=frozenset({"trolley"}), push_feet=_feet(1.05),
+                                placement=PlacementGoal("trolley", (1.5, 0.0, 0.0), 0.0))]
+    sched = plan_schedule(stance, subtasks, objects=[box, trolley])
+    resting = [ph.objects["box"] for ph in sched.phases if ph.subtask_index == 1 and "box" in ph.objects
+               and ph.objects["box"].mode != "free"]
+    assert resting and all(mo.mode == "supported" and mo.support == "trolley" for mo in resting)
+    pushing = [ph for ph in sched.phases if "trolley" in ph.objects]
+    assert pushing and all(ph.objects["box"].mode == "attached" and ph.objects["box"].attached_to == "trolley"
+                           for ph in pushing)
+    # placed beside the trolley instead, it rests on the floor
+    beside = subtasks[:1] + [SubtaskKeyframe(1, "place the box on the floor", q, _feet(0.0) + _hands(0.42, 0.15, "box", half=0.15),
+                                             placement=PlacementGoal("box", (0.0, 0.6, 0.15), 0.0))]
+    last = [ph.objects["box"] for ph in plan_schedule(stance, beside, objects=[box, trolley]).phases if "box" in ph.objects]
+    assert last[-1].mode == "supported" and last[-1].support == FLOOR
 
 
 def test_placing_nothing_is_an_error():

@@ -14,11 +14,13 @@ stance and each keyframe the schedule inserts:
      (as in the hand-written fixtures); in the plan's last subtask only a prompt that says so
      ("pick up", "lift", ...) lifts, "grab the basket" ends holding it;
    * place / put / set: lower the carried object to its placement goal (``free``) -> release (hands
-     still in contact, object resting) -> retract (hands free); the object is no longer carried;
+     still in contact, object resting) -> retract (hands free); the object is no longer carried
+     and rests (``supported``) on what it was set on to the end of the subtask, then stays put;
    * push: walk up to the keyframe's feet, reach and grasp (the keyframe), then the object moves
      (``rolling`` for wheeled objects, otherwise ``supported``, i.e. sliding) while the robot walks
      behind it to ``push_feet``, and its placement goal (the request's, or keyframes.PUSH_DISTANCE
-     straight ahead) holds at the end of the push -> release -> retract;
+     straight ahead) holds at the end of the push -> release -> retract; objects placed on it
+     earlier ride on it (``attached``, S2's box on the trolley);
    * step on / climb: the feet end on the object's top (handled by the footsteps).
    A prompt may chain several ("step on the box and grab the basket").
 
@@ -182,6 +184,7 @@ class _Builder:
         self.timing = timing
         self.held: dict[str, ContactSpec] = {}      # hand -> contact it holds
         self.carried: set[str] = set()              # objects moving with the hands
+        self.resting_on: dict[str, str] = {}        # placed object -> what it was placed on
         self.phases: list[ContactPhase] = []
         self.objects = {o.id: o for o in (objects or [])}
         self.footprints: dict[str, Footprint] = {o.id: footprint_of(o, o.position, o.rpy())
@@ -192,6 +195,25 @@ class _Builder:
         o = self.objects.get(oid)
         if o is not None and o.primitives:
             self.footprints[oid] = footprint_of(o, position, (0.0, 0.0, yaw))
+
+    def support_under(self, oid: str, position) -> str:
+        """What an object placed at ``position`` (its origin, kept level) rests on: the highest
+        scene object whose top is at the placed bottom and whose footprint holds the point, else the
+        floor.  Supports are taken where the scene has them (they have not moved before a place in
+        S1/S2); simplification (named)."""
+        o = self.objects.get(oid)
+        if o is None or not o.primitives:
+            return FLOOR
+        bottom = float(position[2]) + o.bottom_z()
+        best, best_top = FLOOR, 0.02
+        for sid, s in self.objects.items():
+            if sid == oid or not s.primitives:
+                continue
+            top = float(s.position[2]) + s.top_z()
+            fp = footprint_of(s, s.position, s.rpy())
+            if abs(top - bottom) < 0.03 and fp.distance(position) < 1e-6 and top > best_top:
+                best, best_top = sid, top
+        return best
 
     def _obstacles(self, targets: dict[str, tuple[np.ndarray, str]]) -> list[Footprint]:
         """Footprints of the objects the robot neither holds nor stands or steps on."""
@@ -306,7 +328,8 @@ def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timi
             kf_time = b.t
             mode = "rolling" if target in sk.rolling_objects else "supported"
             after = {c.limb: (np.asarray(c.position, float), c.object_id) for c in sk.push_feet}
-            b.walk_to(after, sk.index, objects={target: ObjectMotion(mode)})   # the push itself
+            riding = {o: ObjectMotion("attached", attached_to=target) for o, sup in b.resting_on.items() if sup == target}
+            b.walk_to(after, sk.index, objects={target: ObjectMotion(mode), **riding})   # the push itself
             if sk.placement is not None and sk.placement.object_id == target:
                 out.placement_goals.append(PlacementGoal(target, tuple(sk.placement.position), sk.placement.yaw,
                                                          time=b.t, weight=sk.placement.weight))
@@ -340,11 +363,19 @@ def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timi
                 kf_time = b.t
                 out.placement_goals.append(PlacementGoal(sk.placement.object_id, tuple(sk.placement.position),
                                                          sk.placement.yaw, time=b.t, weight=sk.placement.weight))
-                b.carried.discard(sk.placement.object_id)
-                b.moved(sk.placement.object_id, sk.placement.position, sk.placement.yaw)
-                b.add(tm.release, sk.index)
-                b.held = {h: c for h, c in b.held.items() if c.object_id != sk.placement.object_id}
-                b.add(tm.retract, sk.index)
+                placed = sk.placement.object_id
+                b.carried.discard(placed)
+                b.moved(placed, sk.placement.position, sk.placement.yaw)
+                # set down, it rests on its support under the hands' release (corner forces,
+                # friction; the TO's `supported`) until the subtask ends at rest. Why: as `fixed`
+                # from the place knot on, S1's guide could not meet the place (box kinematics 5e-2)
+                # and its path sank into the floor; supported, the same guide converged
+                sup = b.support_under(placed, sk.placement.position)
+                b.resting_on[placed] = sup
+                resting = {o: ObjectMotion("free") for o in b.carried} | {placed: ObjectMotion("supported", support=sup)}
+                b.add(tm.release, sk.index, objects=resting)
+                b.held = {h: c for h, c in b.held.items() if c.object_id != placed}
+                b.add(tm.retract, sk.index, objects=resting)
             if kf_time is None:          # step on only
                 b.add(tm.retract, sk.index)
                 kf_time = b.t

@@ -565,6 +565,12 @@ class ProblemData:
         x0l[2], x0u[2] = 0.2, 1.6
         setb("x", 0, x0l, x0u)
         setb("xd", N, 0, 0)
+        # objects end at rest too. Why: a subtask segment ends where the next one starts at rest;
+        # a supported object still moving at a segment's last knot was stitched to the next
+        # segment's zero velocity, and the whole horizon then broke its dynamics row (S1's placed
+        # box: 0.23 at the knot before the boundary)
+        for j in self.midx.values():
+            setb(f"o{j}_vel", N, 0, 0)
         lbw[:, K] = 0
         ubw[:, K] = 0
 
