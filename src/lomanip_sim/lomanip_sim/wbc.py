@@ -19,7 +19,10 @@ plan's own kinematics (evaluated with MuJoCo on the planned configurations): CoM
 orientation and position, swing-foot pose, hand position and orientation, posture (all joints).
 Where the dense plan sweeps a hand box into a static scene geom between its knots, the hand
 reference is shifted round it (lomanip_sim.hand_detour); while shifted, that hand's position task
-acts on its own arm only and a torso orientation task keeps the waist on the plan.
+acts on its own arm only and a torso orientation task keeps the waist on the plan. A planned hand
+contact whose object has left the hand (not touched for a while, grasp point out of the arm's
+planned reach) is released until the plan's own release: no hand force, the arm back on the plan's
+posture (``WbcGains.hand_release``).
 
 Named simplifications: the foot moment reference is not tracked (only the net planned foot force;
 the QP distributes the corner forces); the CoM acceleration term J_dot v is neglected (site terms
@@ -158,6 +161,28 @@ class WbcGains:
     # behind the plan at 4.6 s, the stiff hands chased the planned handle and pressed 430 N onto
     # the bar (plan 34 N), the robot leant on the rolling trolley and fell forwards at 6.0 s
     hand_follows_object: bool = True
+    # a planned hand contact whose object has left the hand is released by the controller until the
+    # plan's own release (WholeBodyController._release_hands): no contact force variable (nothing fed
+    # forward, the feet carry everything), the hand stops chasing the object. Released when the hand
+    # has touched the object in this contact, has not touched it for ``hand_release_time`` s AND the
+    # grasp point on the actual object is more than ``hand_release_reach`` from the plan's hand carried
+    # with the actual torso (where the arm would be without chasing; a hand that only bounces off a
+    # grasp that is still there is not released). The push of make demo pushes the trolley with one
+    # impulse and lets it coast; executed, it ran 3-5 cm ahead of the plan and left the hands at
+    # ~3.6 s while the plan kept them on it to 4.8 s; the hands followed it (hand_follows_object),
+    # the robot stood on one foot in a planned double stance and, after 160 s of standing, the
+    # pelvis ran 20 cm off the plan (the graph run fell at 5.58 s)
+    hand_release: bool = True
+    hand_release_time: float = 0.2  # s without touching (> hand_lost_time: bridges a sliding grasp's gaps)
+    # m: 2-4 cm while the push's hands are still on the handle (body and trolley errors); the half
+    # thickness of the hand box is 3.3 cm
+    hand_release_reach: float = 0.05
+    # a released arm's joints track the plan's posture with this weight while its hand position and
+    # orientation tasks fade out (their reference moving to the plan's hand carried with the torso);
+    # 0: the hand tasks stay on, on that reference (push after 160 s of standing: pelvis 13.3 vs 12.8
+    # cm, joints 1.13 vs 0.92 rad: the orientation task, off in the contact, turned the elbow 1 rad)
+    hand_release_posture: float = 100.0
+    hand_release_blend: float = 0.3  # s, smoothstep from the contact's tasks to the released ones (and back)
     # the hands' net force on a lifted object (planned this high above its initial height) is fed
     # forward as what the object's planned motion needs, m (a + g), split equally between the hands
     # that hold it; the plan's squeeze (each hand's force minus the hands' mean) is kept. The TO's
@@ -184,6 +209,7 @@ class _Refs:
     base_w: np.ndarray
     base_alpha: np.ndarray
     torso_R: np.ndarray | None = None  # (N,3,3)
+    torso_p: np.ndarray | None = None  # (N,3) torso body origin
     torso_w: np.ndarray | None = None  # (N,3) world angular velocity
     site_p: dict = field(default_factory=dict)  # limb -> (N,3)
     site_R: dict = field(default_factory=dict)  # limb -> (N,3,3)
@@ -264,6 +290,9 @@ class WholeBodyController:
         self._last_tau = np.zeros(NJ)
         self._engaged: dict = {}
         self._last_touch: dict = {}  # hand -> trajectory time its collision box last touched its object
+        self._touched: dict = {}  # hand -> object it has touched in its current planned contact
+        self.released: dict = {}  # hand -> (object, time released, time of the plan's own release or None)
+        self.release_events: list[tuple[str, str, float, float]] = []  # (hand, object, time, grasp point distance)
         self._swing_start: dict = {}
 
     # ---------------------------------------------------------------------------- references
@@ -272,6 +301,7 @@ class WholeBodyController:
         n = tr.n
         com, com_v = np.zeros((n, 3)), np.zeros((n, 3))
         base_R, base_w, torso_R, torso_w = np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 3))
+        torso_p = np.zeros((n, 3))
         sp = {l: np.zeros((n, 3)) for l in self.sites}
         sR = {l: np.zeros((n, 3, 3)) for l in self.sites}
         sv = {l: np.zeros((n, 6)) for l in self.sites}
@@ -288,6 +318,7 @@ class WholeBodyController:
             com_v[i] = jcom @ d.qvel
             base_R[i] = d.xmat[self.pelvis].reshape(3, 3)
             torso_R[i] = d.xmat[self.torso].reshape(3, 3)
+            torso_p[i] = d.xpos[self.torso]
             mujoco.mj_jacBody(m, d, self._jp, self._jr, self.torso)
             torso_w[i] = self._jr @ d.qvel
             base_w[i] = base_R[i] @ tr.qvel(i)[3:6]
@@ -332,7 +363,7 @@ class WholeBodyController:
         grad = lambda a: np.gradient(a, t, axis=0)  # noqa: E731
         return _Refs(com=com, com_v=com_v, com_a=grad(com_v), base_p=tr.base_pos.copy(), base_v=tr.base_linvel.copy(),
                      base_a=grad(tr.base_linvel), base_R=base_R, base_w=base_w, base_alpha=grad(base_w),
-                     torso_R=torso_R, torso_w=torso_w,
+                     torso_R=torso_R, torso_w=torso_w, torso_p=torso_p,
                      site_p=sp, site_R=sR, site_v=sv, site_a={l: grad(v) for l, v in sv.items()},
                      qdd=grad(tr.qd))  # fmt: skip
 
@@ -367,10 +398,11 @@ class WholeBodyController:
                 out[b] = (np.repeat(q0[None, :3], tr.n, 0), np.repeat(q0[None, 3:], tr.n, 0))
         return out
 
-    def _on_actual_object(self, data: mujoco.MjData, oid: str, p: np.ndarray, i: int, s: float) -> np.ndarray:
+    def _on_actual_object(self, data: mujoco.MjData, oid: str, p: np.ndarray, i: int, s: float,
+                          lifted: bool = False) -> np.ndarray:
         """``p`` (on the planned object at grid time i + s) carried to the object's actual pose; only
-        for objects the plan keeps at one height (pushed on the floor): case_lift_box's box slid 1-2
-        cm in the grasp, hands that followed it left it 8.4 cm below its goal."""
+        for objects the plan keeps at one height (pushed on the floor) unless ``lifted``:
+        case_lift_box's box slid 1-2 cm in the grasp, hands that followed it left it 8.4 cm below its goal."""
         tr = self.traj
         if oid not in tr.objects:
             return p
@@ -384,13 +416,73 @@ class WholeBodyController:
         if body[1] is None:
             body = self._object_body[oid] = (b, self._com_offset(b))
         P, Q = tr.objects[oid]
-        if np.ptp(P[:, 2]) > 0.01:  # a lifted object: the hands carry it to the plan (a slipping box is not followed)
+        if np.ptp(P[:, 2]) > 0.01 and not lifted:  # a lifted object: the hands carry it to the plan (a slipping box is not followed)
             return p
         c_plan = P[i] + s * (P[i + 1] - P[i])
         R_plan = frames.quat_to_matrix(Q[i if s < 0.5 else i + 1])
         R_act = data.xmat[b].reshape(3, 3)
         c_act = data.xpos[b] + R_act @ body[1]
         return c_act + R_act @ (R_plan.T @ (p - c_plan))
+
+    def _release_hands(self, data: mujoco.MjData, contacts: dict, t: float, i: int, s: float) -> dict:
+        """The phase's contacts less the hand contacts the controller has released (``hand_release``).
+
+        A planned hand contact is released when its object has left the hand: the hand touched the
+        object in this contact, has not touched it for ``hand_release_time`` s, and the grasp point on
+        the actual object is more than ``hand_release_reach`` from the plan's hand carried with the
+        torso (where the arm would be without chasing the object). It stays released until the
+        plan's own release (the contact ends or changes object)."""
+        g, out = self.g, dict(contacts)
+        for limb in HANDS:
+            c = contacts.get(limb)
+            rel = self.released.get(limb)
+            if c is None:  # no planned contact (the plan's own release): the released tasks blend out
+                self._touched.pop(limb, None)
+                if rel is not None:
+                    if rel[2] is None:
+                        rel = self.released[limb] = (rel[0], rel[1], t)
+                    if t - rel[2] >= g.hand_release_blend:
+                        del self.released[limb]
+                continue
+            if rel is not None:
+                if rel[0] == c.object_id and rel[2] is None:
+                    out.pop(limb)
+                    continue
+                del self.released[limb]  # another contact: starts afresh
+            if self._touching(data, limb, c.object_id):
+                self._touched[limb] = (c.object_id, t)
+            seen = self._touched.get(limb)
+            if seen is None or seen[0] != c.object_id or t - seen[1] <= g.hand_release_time:
+                continue
+            p_plan = self.refs.site_p[limb][i] + s * (self.refs.site_p[limb][i + 1] - self.refs.site_p[limb][i])
+            grasp = self._on_actual_object(data, c.object_id, p_plan, i, s, lifted=True)
+            p_body, _R = self._on_torso(data, p_plan, None, i, s)
+            dist = float(np.linalg.norm(grasp - p_body))
+            if dist > g.hand_release_reach:
+                self.released[limb] = (c.object_id, t, None)
+                self.release_events.append((limb, c.object_id, t, dist))
+                out.pop(limb)
+        return out
+
+    def _body_weight(self, limb: str, t: float) -> float:
+        """0..1: how far a hand is in its released state (hand reference on the plan carried with the
+        torso, the arm on the plan's posture): in over ``hand_release_blend`` s from the release, out as
+        long after the plan's own release."""
+        rel = self.released.get(limb)
+        if rel is None or self.g.hand_release_blend <= 0:
+            return 0.0 if rel is None else 1.0
+        w = float(smoothstep(np.clip((t - rel[1]) / self.g.hand_release_blend, 0.0, 1.0)))
+        if rel[2] is not None:
+            w *= 1.0 - float(smoothstep(np.clip((t - rel[2]) / self.g.hand_release_blend, 0.0, 1.0)))
+        return w
+
+    def _on_torso(self, data: mujoco.MjData, p: np.ndarray, R: np.ndarray | None, i: int, s: float):
+        """Planned hand position ``p`` (and orientation ``R``) at grid time i + s carried from the
+        planned to the actual torso frame."""
+        Rt = self.refs.torso_R[i if s < 0.5 else i + 1]
+        tp = self.refs.torso_p[i] + s * (self.refs.torso_p[i + 1] - self.refs.torso_p[i])
+        Ra = data.xmat[self.torso].reshape(3, 3) @ Rt.T
+        return data.xpos[self.torso] + Ra @ (p - tp), (None if R is None else Ra @ R)
 
     def _com_offset(self, body: int) -> np.ndarray:
         """CoM of a free body's subtree (wheels included) in its own frame, at the model's qpos0."""
@@ -550,6 +642,8 @@ class WholeBodyController:
         self.status = WbcStatus()
         self._engaged.clear()
         self._last_touch.clear()
+        self._touched.clear()
+        self.released.clear()
         self._swing_start.clear()
 
     def trajectory_time(self, data: mujoco.MjData) -> float:
@@ -569,7 +663,8 @@ class WholeBodyController:
             return np.zeros(a.shape[1:]) if after_end else lerp(a)
 
         phase = tr.phase_at(min(t, tr.duration))
-        contacts = phase.contacts if phase is not None else {f: None for f in FEET}
+        planned = phase.contacts if phase is not None else {f: None for f in FEET}
+        contacts = self._release_hands(data, planned, t, i, s) if g.hand_release else planned
         dofs = self.dofs
         v = data.qvel[dofs]
         qj = data.qpos[self.bq + 7 : self.bq + 7 + NJ]
@@ -624,9 +719,14 @@ class WholeBodyController:
                     b = a_ref + g.foot_kp * e + g.foot_kd * (v_ref - vel) - jdv
                     task(J, b, g.w_swing)
             else:
-                p_ref = lerp(R_.site_p[limb])
+                p_ref = p_plan = lerp(R_.site_p[limb])
                 if g.hand_follows_object and limb in contacts and contacts[limb] is not None:
                     p_ref = self._on_actual_object(data, contacts[limb].object_id, p_ref, i, s)
+                R_ref = R_.site_R[limb][i if s < 0.5 else i + 1]
+                wb = self._body_weight(limb, t)
+                if wb > 0.0:  # released: the plan's hand carried with the torso
+                    p_body, R_body = self._on_torso(data, p_plan, R_ref, i, s)
+                    p_ref = p_ref + wb * (p_body - p_ref)
                 e = p_ref - p
                 stiff = self._hand_stiff[limb][i if s < 0.5 else i + 1]
                 kp, kd, wh = (g.hand_kp, g.hand_kd, g.w_hand) if stiff else (g.free_hand_kp, g.free_hand_kd, g.w_free_hand)
@@ -636,12 +736,20 @@ class WholeBodyController:
                     # a detour is the arm's own correction: the hand task may not move the body for it
                     Jh = np.zeros_like(Jh)
                     Jh[:, self._arm_cols[limb]] = J[:3, self._arm_cols[limb]]
+                if wb > 0.0 and g.hand_release_posture > 0:
+                    wh *= 1.0 - wb
                 task(Jh, b, wh)
-                eo = _rot_error(R_.site_R[limb][i if s < 0.5 else i + 1], Rm)
+                eo = _rot_error(R_ref, Rm)
+                if wb > 0.0:
+                    eo = eo + wb * (_rot_error(R_body, Rm) - eo)
                 bo = kp * eo + kd * (dlerp(R_.site_v[limb])[3:] - vel[3:]) - jdv[3:]
                 w_ori = g.w_hand_ori if stiff else g.w_free_hand_ori
                 if limb in contacts:
                     w_ori = g.w_hand_ori_contact
+                elif limb in self.released and self.released[limb][2] is None:  # released: back on over the blend
+                    w_ori = g.w_hand_ori_contact + wb * (w_ori - g.w_hand_ori_contact)
+                if wb > 0.0 and g.hand_release_posture > 0:
+                    w_ori *= 1.0 - wb
                 task(J[3:], bo, w_ori)
 
         # --- CoM
@@ -689,7 +797,13 @@ class WholeBodyController:
         # --- posture
         q_ref = lerp(tr.q)
         b = dlerp(R_.qdd) + g.posture_kp * (q_ref - qj) + g.posture_kd * (dlerp(tr.qd) - vj)
-        task(np.eye(NV)[6:], b, g.w_posture)
+        wp = np.full(NJ, g.w_posture)
+        if g.hand_release_posture > 0:
+            for limb in HANDS:
+                wb = self._body_weight(limb, t)
+                if wb > 0.0:
+                    wp[self._arm_cols[limb] - 6] = g.w_posture + wb * (g.hand_release_posture - g.w_posture)
+        task(np.eye(NV)[6:], b, wp)
 
         A = np.vstack(rows_A)
         bb = np.concatenate(rows_b)
@@ -785,6 +899,9 @@ class WholeBodyController:
             tau = np.clip(x[:NJ], -self.limits, self.limits)
             self._last_tau = tau
             self.last_forces = {limb: sum(x[NJ + NV + 3 * k : NJ + NV + 3 * k + 3] for k in ks) for limb, ks in by_limb.items()}
+            for limb in HANDS:
+                if limb in planned and planned[limb] is not None and limb not in by_limb:
+                    self.last_forces[limb] = np.zeros(3)  # a released hand: no contact force
             st.qp_iterations = int(info.get("iterations", 0)) if isinstance(info, dict) else 0
         else:
             st.qp_failures += 1
