@@ -18,12 +18,17 @@ from .route import footprint_of, point_along, shortest_route
 from .transcription import G, Structure, Window
 
 INF = np.inf
+#: clearance (m) of the foot and shin spheres from objects in the hard collision rows.  Why: the
+#: spheres only approximate the meshes (a toe corner sticks out ~5 mm past the toe spheres, the
+#: kneecap past the shin's), and the demo push's plans stepped a toe into a trolley wheel and a
+#: knee against its deck on MuJoCo's model; the executed robot fell (docs/execution.md, session 8)
+LEG_OBJECT_CLEARANCE = 0.03
 
 DEFAULT_WEIGHTS = {
-    "w_post": 1.0, "w_xd": 0.05, "w_acc": 0.5, "w_force": 0.2, "w_st_com": 20.0, "w_st_vel": 10.0,
+    "w_post": 1.0, "w_xd": 0.05, "w_acc": 0.5, "w_force": 0.2, "w_force_rate": 20.0, "w_st_com": 20.0, "w_st_vel": 10.0,
     "w_kff": 5e2, "w_wk_base": 20.0, "w_upright": 20.0, "w_anchor": 10.0, "w_kfb_z": 100.0,
     "w_kfb_th": 10.0, "w_slack": 1e2, "w_self": 1e3, "w_swing": 2e3, "swing_clearance": 0.06,
-    "w_pen": 1e4, "w_hom": 1e2, "w_obj_reg": 1.0, "w_goal": 1e3,
+    "w_pen": 1e4, "w_hom": 1e2, "w_obj_reg": 1.0, "w_obj_acc": 20.0, "w_goal": 1e3,
     "mu_foot": 0.6, "mu_hand": 0.8, "mu_obj": 0.5, "self_margin": 0.0,
     "pair_prefilter": 0.25,
 }
@@ -632,15 +637,17 @@ class ProblemData:
                 rows(f"o{j} above the floor", k, 0 if mode == "free" else -INF, INF)
                 if mode != "rolling":
                     rows(f"o{j} rolling: no longitudinal wheel force", k, -INF, INF)
+                    rows(f"o{j} rolling: resistance opposes motion", k, -INF, INF)
                     rows(f"o{j} nonholonomic: no lateral slip", k, -INF, INF)
                 else:  # up to the wheels' rolling resistance: the hands cannot pull to stop it
                     f_rr = WHEEL_ROLLING_RESISTANCE / (m.mass * G)
                     rows(f"o{j} rolling: no longitudinal wheel force", k, -f_rr, f_rr)
+                    rows(f"o{j} rolling: resistance opposes motion", k, -INF, 0)
                 if mode != "attached":
                     rows(f"o{j} attachment", k, -INF, INF)
             for i, (s, (oid, pi)) in enumerate(self.pairs):
                 on = self._pair_enabled(k, s, oid)
-                rows(f"c{i} collision", k, 0 if (hard and on) else -INF, INF)
+                rows(f"c{i} collision", k, self._clearance(s) if (hard and on) else -INF, INF)
                 rows(f"c{i} homotopy surrogate", k, 0 if (homotopy and on) else -INF, INF)
             for (a, b) in win.st.self_pairs:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
@@ -661,9 +668,11 @@ class ProblemData:
             sp("dt", t[k + 1] - t[k] if k < N else t[N] - t[N - 1])
             sp("w_stage", 1.0 / N)
             sp("b_st", 1.0 if ph.phase_type == STANCE else 0.0)
-            for key in ("w_post", "w_xd", "w_acc", "w_force", "w_st_com", "w_st_vel", "w_wk_base",
+            for key in ("w_post", "w_xd", "w_acc", "w_force", "w_force_rate", "w_st_com", "w_st_vel", "w_wk_base",
                         "w_upright", "w_slack", "w_self", "mu_hand", "self_margin"):
                 sp(key, w[key])
+            if k == N:   # the knot after the last is a zero dummy, not a change of load
+                sp("w_force_rate", 0.0)
             sp("mu_foot", w["mu_foot"] / math.sqrt(2))  # inner pyramid of the cone
             sp("mu_hand", w["mu_hand"] / math.sqrt(2))
             sp("mu_obj", w["mu_obj"] / math.sqrt(2))
@@ -910,6 +919,7 @@ class ProblemData:
             col[P[f"o{j}_att_sel"]] = sel
             col[P[f"o{j}_att_off"]] = self._attach_offset(k, oid, mo.attached_to)
         col[P[f"o{j}_w_reg"]] = self.w["w_obj_reg"]
+        col[P[f"o{j}_w_acc"]] = self.w["w_obj_acc"] if mode in ("supported", "rolling") else 0.0
         for g in self.prob.placement_goals:
             if g.object_id != oid:
                 continue
@@ -918,6 +928,12 @@ class ProblemData:
             if k == kg or k == self.grid.K - 1:
                 col[P[f"o{j}_w_goal"]] = g.weight
                 col[P[f"o{j}_goal"]] = [*g.position, g.yaw]
+
+    def _clearance(self, s: int) -> float:
+        """Least distance (m) the hard collision row keeps sphere ``s`` from an object's
+        primitives: LEG_OBJECT_CLEARANCE for feet and shins, else 0."""
+        grp = self.model.spheres[s].group
+        return LEG_OBJECT_CLEARANCE if grp.endswith(("_foot", "_shin")) else 0.0
 
     def _pair_enabled(self, k, s, oid) -> bool:
         grp = self.model.spheres[s].group

@@ -297,6 +297,12 @@ class G1Model:
             for i, xo in enumerate((-0.02, 0.09)):
                 out.append(CollisionSphere(f"{s}_foot_{i}", jid(f"{s}_ankle_roll_joint"),
                                            np.array([xo, 0.0, -0.035 + 0.032]), 0.03, f"{s}_foot"))
+            # and the toe corners, which the two spheres miss by 1-2 cm (sole +-3 cm wide at the
+            # toe): the demo push's plan swung a toe 5.5 mm into a trolley wheel on MuJoCo's model
+            # and the robot fell (docs/execution.md, session 8)
+            for i, yo in enumerate((0.02, -0.02)):
+                out.append(CollisionSphere(f"{s}_foot_toe_{i}", jid(f"{s}_ankle_roll_joint"),
+                                           np.array([0.105, yo, -0.035 + 0.017]), 0.015, f"{s}_foot"))
             seg(f"{s}_upper_arm", f"{s}_shoulder_yaw_joint", f"{s}_elbow_joint", 0.045, 1,
                 f"{s}_upper_arm", 0.5, 0.5)
             seg(f"{s}_forearm", f"{s}_elbow_joint", f"{s}_wrist_roll_joint", 0.04, 1, f"{s}_forearm",

@@ -54,6 +54,8 @@ HAND_TORSION = 0.01
 #: scale of the hand moments in the force regulariser: a moment is used only where the task needs
 #: it (with 10, the push's hands carried moments that the wrists could not hold: torque check failed)
 HAND_MOMENT_COST = 100.0
+#: scale of the wheels' dissipation rows (force in robot weights x velocity in m/s is ~1e-3)
+ROLLING_DISSIPATION_SCALE = 100.0
 
 
 @dataclass(frozen=True)
@@ -91,7 +93,7 @@ def var_layout(st: Structure) -> Layout:
 
 def par_layout(st: Structure) -> Layout:
     P = Layout("p")
-    for k in ("dt", "w_stage", "b_st", "w_post", "w_xd", "w_acc", "w_force", "w_st_com", "w_st_vel",
+    for k in ("dt", "w_stage", "b_st", "w_post", "w_xd", "w_acc", "w_force", "w_force_rate", "w_st_com", "w_st_vel",
               "w_kff", "w_wk_base", "w_upright", "w_anchor", "w_kfb_z", "w_kfb_th", "w_slack",
               "w_self", "mu_foot", "mu_hand", "mu_obj", "self_margin"):
         P.add(k, 1)
@@ -121,6 +123,7 @@ def par_layout(st: Structure) -> Layout:
         P.add(f"o{j}_w_goal", 1)
         P.add(f"o{j}_goal", 4)
         P.add(f"o{j}_w_reg", 1)
+        P.add(f"o{j}_w_acc", 1)
     for i in range(len(st.obj_pairs)):
         P.add(f"c{i}_sel", st.n_obj + 1)
         P.add(f"c{i}_pose", 12)  # static world primitive: centre (3) + R (9, column-major)
@@ -346,6 +349,14 @@ class Window:
             heading = Ra[:, 0]
             lateral = Ra[:, 1]
             add(f"o{j} rolling: no longitudinal wheel force", ca.vertcat(*[ca.dot(us[:, i], heading) for i in range(4)]))
+            # rolling resistance dissipates: a wheel's longitudinal force never points along the
+            # wheel's velocity at the end of the interval (Coulomb, as the sim's wheel frictionloss;
+            # at rest it holds either way).  Without it the bound +-f_rr let the floor drive the
+            # trolley: the demo's plan sped it up from 0.24 to 0.34 m/s with no hand force, and the
+            # executed trolley stopped 7 cm short of it (the robot fell, docs/execution.md session 8)
+            add(f"o{j} rolling: resistance opposes motion",
+                ca.vertcat(*[ROLLING_DISSIPATION_SCALE * ca.dot(us[:, i], heading)
+                             * ca.dot(vb[0:3] + ca.cross(wb_, Ra @ corners[:, i]), heading) for i in range(4)]))
             axle_v = va[0:3] + ca.cross(wa_, Ra @ pp[f"o{j}_axle"])
             add(f"o{j} nonholonomic: no lateral slip", ca.dot(axle_v, lateral))
             att = pp[f"o{j}_att_sel"]
@@ -363,6 +374,10 @@ class Window:
             goal = pp[f"o{j}_goal"]
             cost += pp[f"o{j}_w_goal"] * (ca.sumsqr(pa - goal[0:3]) + 0.3 * (rpya[2] - goal[3]) ** 2)
             cost += pp["w_stage"] * pp[f"o{j}_w_reg"] * ca.sumsqr(va)
+            # an object pushed over its support speeds up and slows down smoothly: a push the
+            # hands keep up, not one kick and a coast (the demo's plan: 23.5 N for 0.1 s, then the
+            # hands only rode along; executed, the trolley got 7 cm of its 25 and the robot fell)
+            cost += pp["w_stage"] * pp[f"o{j}_w_acc"] * ca.sumsqr((vb[0:3] - va[0:3]) / dt)
             cost += pp["w_stage"] * pp["w_force"] * 0.1 * ca.sumsqr(wa[f"o{j}_us"])
 
         # ---- collisions: robot spheres vs object primitives
@@ -411,7 +426,11 @@ class Window:
                            *[HAND_MOMENT_COST * wa[f"tau_{h}"] for h in HANDS])
         L_reg = (pp["w_post"] * ca.sumsqr(x[6:] - xr[6:]) + pp["w_xd"] * ca.sumsqr(xd[6:])
                  + 10 * pp["w_xd"] * ca.sumsqr(xd[0:6]) + pp["w_acc"] * ca.sumsqr(wb["xd"] - xd)
-                 + pp["w_force"] * ca.sumsqr(u_all) + pp["w_upright"] * (x[3] ** 2 + x[4] ** 2))
+                 + pp["w_force"] * ca.sumsqr(u_all) + pp["w_upright"] * (x[3] ** 2 + x[4] ** 2)
+                 # the soles' load changes smoothly: without it the demo push's plan threw the whole
+                 # weight from one foot to the other and back every 0.2 s inside a double stance, and
+                 # the executed robot fell off its unloaded foot (docs/execution.md, session 8)
+                 + pp["w_force_rate"] * sum(ca.sumsqr(wb[f"u_{f}"] - wa[f"u_{f}"]) for f in FEET))
         mid = 0.5 * (limbs["left_foot"][0][0:2] + limbs["right_foot"][0][0:2])
         L_kff = pp["w_kff"] * ca.sumsqr(mid - pp["foot_des"])
         L_st = pp["w_st_com"] * ca.sumsqr(wa["com"][0:2] - mid) + pp["w_st_vel"] * ca.sumsqr(wa["comd"]) + L_kff
