@@ -665,6 +665,7 @@ class WholeBodyController:
         phase = tr.phase_at(min(t, tr.duration))
         planned = phase.contacts if phase is not None else {f: None for f in FEET}
         contacts = self._release_hands(data, planned, t, i, s) if g.hand_release else planned
+        released_w = {limb: self._body_weight(limb, t) for limb in HANDS}  # 0..1 per hand, this step
         dofs = self.dofs
         v = data.qvel[dofs]
         qj = data.qpos[self.bq + 7 : self.bq + 7 + NJ]
@@ -723,7 +724,7 @@ class WholeBodyController:
                 if g.hand_follows_object and limb in contacts and contacts[limb] is not None:
                     p_ref = self._on_actual_object(data, contacts[limb].object_id, p_ref, i, s)
                 R_ref = R_.site_R[limb][i if s < 0.5 else i + 1]
-                wb = self._body_weight(limb, t)
+                wb = released_w[limb]
                 if wb > 0.0:  # released: the plan's hand carried with the torso
                     p_body, R_body = self._on_torso(data, p_plan, R_ref, i, s)
                     p_ref = p_ref + wb * (p_body - p_ref)
@@ -800,7 +801,7 @@ class WholeBodyController:
         wp = np.full(NJ, g.w_posture)
         if g.hand_release_posture > 0:
             for limb in HANDS:
-                wb = self._body_weight(limb, t)
+                wb = released_w[limb]
                 if wb > 0.0:
                     wp[self._arm_cols[limb] - 6] = g.w_posture + wb * (g.hand_release_posture - g.w_posture)
         task(np.eye(NV)[6:], b, wp)
