@@ -130,3 +130,39 @@ def test_real_time_factor_helper():
     rtf = sim.real_time_factor(0.5)
     print(f"\nreal-time factor over 0.5 s: {rtf:.1f}")
     assert rtf > 1.0
+
+
+def test_controller_observes_each_step_after_its_dynamics(s2):
+    """A controller with ``observe(data)`` gets it after every step's mj_step2, where MuJoCo's contact
+    list and constraint forces belong to the same step (read after mj_step1 they mix two steps)."""
+    from lomanip_sim.contact_forces import LimbForceMeter
+
+    s2.reset()
+    standing = s2.controller
+    meter = LimbForceMeter(s2.model)
+
+    class Observing:
+        def __init__(self):
+            self.seen = []
+
+        def reset(self, data):
+            standing.reset(data)
+
+        def compute(self, data):
+            return standing.compute(data)
+
+        def observe(self, data):
+            f = meter.measure(data)
+            self.seen.append(f["left_foot"][2] + f["right_foot"][2])
+
+    ctl = Observing()
+    s2.set_controller(ctl)
+    try:
+        s2.step(500)
+        assert len(ctl.seen) == 500
+        weight = float(s2.model.body_subtreemass[s2.model.body("pelvis").id]) * 9.81
+        assert np.mean(ctl.seen[-100:]) == pytest.approx(weight, rel=0.03)
+        s2.step(10, torques=np.zeros(len(G1_JOINT_NAMES)))  # commanded torques: the controller is not asked
+        assert len(ctl.seen) == 500
+    finally:
+        s2.set_controller(standing)

@@ -293,3 +293,54 @@ def test_hand_contact_released_when_its_object_has_left_the_hand():
     run_to(let_go + g.hand_release_blend + 0.02)
     assert not wbc.released  # after the plan's own release (and the blend) nothing is left of it
     assert not sim.has_fallen()
+
+
+def test_push_admittance_sets_the_hand_depth_from_the_measured_force():
+    """On an object the plan keeps at one height (pushed along the floor), the hand reference along
+    the contact normal is an admittance (``hand_push_admittance``): out of the object while the hand
+    presses harder than desired, into it while it presses less, within bounds; the desired force is
+    the plan's, lower where the object runs ahead of its plan. The push of make demo: a stiff hand
+    5 mm inside the freely rolling trolley drove it 9 cm ahead of the plan."""
+    import dataclasses
+
+    sim, tr = simulation("case_lift_box")
+    P, Q = tr.objects["box"]  # the box held where it stands: an object kept at one height
+    tr = dataclasses.replace(tr, objects={**tr.objects, "box": (np.repeat(P[:1], len(P), 0), np.repeat(Q[:1], len(Q), 0))})
+    wbc = WholeBodyController(sim.world, tr)
+    g, dt = wbc.g, sim.model.opt.timestep
+    t = next(0.5 * (ph.start + ph.end) for ph in tr.phases if "left_hand" in ph.contacts)
+    i, s = tr.index_at(t)
+    c = tr.phase_at(t).contacts["left_hand"]
+    mujoco.mj_forward(sim.model, sim.data)
+    wbc._on_actual_object(sim.data, "box", np.zeros(3), i, s)  # resolves the object's body
+    n = wbc._contact_normals(c)[i if s < 0.5 else i + 1]
+    f_plan = tr.forces["left_hand"][i] + s * (tr.forces["left_hand"][i + 1] - tr.forces["left_hand"][i])
+    f_des = max(float(n @ f_plan), g.push_min_force)
+
+    def steps(force_n, k):
+        wbc.measured_forces["left_hand"] = force_n * n
+        for _ in range(k):
+            shift = wbc._push_admittance(sim.data, "left_hand", c, t, i, s)
+        return float(shift @ n)
+
+    assert steps(f_des, 1) == pytest.approx(0.0, abs=1e-9)  # pressing as desired: stays on the surface
+    assert np.isclose(wbc._push_force["left_hand"][1], f_des)
+    out = steps(f_des + 30.0, 100)  # 30 N too hard: backs out at rate * 30 N
+    assert out == pytest.approx(min(100 * dt * g.hand_admittance_rate * 30.0, g.hand_admittance_out), rel=0.02)
+    assert steps(f_des + 1e4, 200) == pytest.approx(g.hand_admittance_out)  # bounded
+    assert steps(0.0, 5000) == pytest.approx(-g.hand_admittance_in)  # nothing felt: goes in, bounded
+    # the object 5 cm ahead along the push (away from the hand): less force wanted, not below the minimum
+    box = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, sim.world.objects["box"].body_name)
+    qadr = sim.model.jnt_qposadr[sim.model.body_jntadr[box]]
+    sim.data.qpos[qadr : qadr + 3] -= 0.05 * n
+    mujoco.mj_forward(sim.model, sim.data)
+    steps(0.0, 1)
+    want = float(np.clip(float(n @ f_plan) - g.push_object_gain * 0.05, g.push_min_force, None))
+    assert wbc._push_force["left_hand"][1] == pytest.approx(want, abs=1e-6)
+    # an object the plan lifts is not pushed: no admittance, the plan's force
+    sim2, tr2 = simulation("case_lift_box")
+    wbc2 = WholeBodyController(sim2.world, tr2)
+    mujoco.mj_forward(sim2.model, sim2.data)
+    wbc2._on_actual_object(sim2.data, "box", np.zeros(3), i, s)
+    assert np.all(wbc2._push_admittance(sim2.data, "left_hand", c, t, i, s) == 0.0)
+    assert "left_hand" not in wbc2._push_force

@@ -24,7 +24,6 @@ import mujoco
 import numpy as np
 
 from . import frames
-from .contact_forces import LimbForceMeter
 from .robot_model import FOOT_SITES, TORSO_BODY
 from .standing import StandingController
 from .task_success import evaluate
@@ -82,7 +81,6 @@ class Execution:
         check_against_scene(traj, sim.world.objects)
         check_start(traj, sim.robot_qpos(), self.opt.start_tolerance)
         self.wbc = WholeBodyController(sim.world, traj, gains)
-        self.meter = LimbForceMeter(sim.model)
         self.log = ExecutionLog()
         self.initial_objects = {oid: sim.object_pose(oid) for oid in sim.world.objects}
         m = sim.model
@@ -103,6 +101,9 @@ class Execution:
     # ----------------------------------------------------------------- TorqueController protocol
     def reset(self, data: mujoco.MjData) -> None:
         self.wbc.reset(data)
+
+    def observe(self, data: mujoco.MjData) -> None:
+        self.wbc.observe(data)
 
     def compute(self, data: mujoco.MjData) -> np.ndarray:
         now = time.perf_counter()
@@ -206,7 +207,7 @@ class Execution:
         lg.joint_rms.append(st.joint_error_rms)
         lg.joint_max.append(st.joint_error_max)
         lg.qpos.append(data.qpos.copy())
-        meas = self.meter.measure(data)
+        meas = self.wbc.measured_forces  # of the last completed step (read after its mj_step2)
         i, s = tr.index_at(st.t_ref)
         for limb in LIMBS:
             lg.measured[limb].append(meas[limb])

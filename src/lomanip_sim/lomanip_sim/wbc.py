@@ -41,6 +41,7 @@ import numpy as np
 from . import frames
 from .robot_model import (FOOT_BODIES, FOOT_CONTACT_POINTS, FOOT_SITES, G1_JOINT_NAMES, HAND_COLLISION_HALF_SIZE,
                           HAND_SITES, PELVIS_BODY, TORSO_BODY)
+from .contact_forces import LimbForceMeter
 from .hand_approach import approach_lift, smoothstep
 from .hand_detour import Detour, HandBoxProbe, detour, movable_bodies, static_obstacle_geoms
 from .trajectory import FEET, HANDS, Trajectory
@@ -193,6 +194,22 @@ class WbcGains:
     # 3.1 s) and the robot fell at 4.24 s; with this, the box is carried to 3.56 s (fell at 5.58 s)
     hand_force_from_object_motion: bool = True
     object_lift_height: float = 0.01  # m
+    # on an object pushed along the floor (one the hands follow), the hand's reference along the
+    # contact normal is an admittance: it moves out of the object while the measured normal force
+    # exceeds the desired one and into it while it is below (rate in m/s per N, depth bounded).
+    # The desired force is the plan's, less push_object_gain times how far the object is ahead of
+    # its plan along the push (more where it lags), between push_min_force and the plan's +
+    # push_max_extra. Why: a position-controlled hand 5 mm inside a freely rolling trolley drives it
+    # (the reference rides on the trolley): in the graph's push the right hand pushed 16 N where
+    # 1-9 N were planned, the trolley ran 9 cm ahead before the planned push began, the hands chased
+    # it and the robot fell at 3.7 s
+    hand_push_admittance: bool = True
+    hand_admittance_rate: float = 0.005
+    hand_admittance_out: float = 0.05  # m, most the reference backs out of the surface
+    hand_admittance_in: float = 0.03  # m, most it goes further in
+    push_object_gain: float = 200.0  # N/m
+    push_min_force: float = 2.0  # N: a hand keeps touching an object that runs ahead
+    push_max_extra: float = 40.0  # N over the plan's normal force
 
 
 @dataclass
@@ -294,6 +311,12 @@ class WholeBodyController:
         self.released: dict = {}  # hand -> (object, time released, time of the plan's own release or None)
         self.release_events: list[tuple[str, str, float, float]] = []  # (hand, object, time, grasp point distance)
         self._swing_start: dict = {}
+        self._meter = LimbForceMeter(m)
+        self.measured_forces = {l: np.zeros(3) for l in (*FEET, *HANDS)}  # on the robot, after the last step
+        self._admittance: dict = {}  # hand -> [contact, normal shift (m)] while pushing a floor object
+        self._push_force: dict = {}  # hand -> (normal, desired normal force on the robot) this step
+        self._normals_cache: dict = {}
+        self.admittance_log: list[tuple[float, str, float, float, float]] = []  # (t, hand, shift, f_n meas, f_n desired)
 
     # ---------------------------------------------------------------------------- references
     def _precompute_refs(self) -> _Refs:
@@ -423,6 +446,45 @@ class WholeBodyController:
         R_act = data.xmat[b].reshape(3, 3)
         c_act = data.xpos[b] + R_act @ body[1]
         return c_act + R_act @ (R_plan.T @ (p - c_plan))
+
+    def _object_lead(self, data: mujoco.MjData, oid: str, i: int, s: float) -> np.ndarray | None:
+        """Actual minus planned CoM of an object the plan pushes along the floor (None otherwise)."""
+        tr = self.traj
+        if oid not in tr.objects or oid not in self._object_body:  # _on_actual_object resolves the body first
+            return None
+        b, off = self._object_body[oid]
+        P = tr.objects[oid][0]
+        if b < 0 or off is None or np.ptp(P[:, 2]) > 0.01:
+            return None
+        return data.xpos[b] + data.xmat[b].reshape(3, 3) @ off - (P[i] + s * (P[i + 1] - P[i]))
+
+    def _push_admittance(self, data: mujoco.MjData, limb: str, c, t: float, i: int, s: float) -> np.ndarray:
+        """Shift (3,) of the hand reference along the contact normal (``WbcGains.hand_push_admittance``);
+        also sets the desired normal force that :meth:`hand_feedforward` feeds forward."""
+        g, tr = self.g, self.traj
+        self._push_force.pop(limb, None)
+        lead = self._object_lead(data, c.object_id, i, s)
+        if lead is None or limb not in tr.forces:
+            self._admittance.pop(limb, None)
+            return np.zeros(3)
+        key = (c.object_id, None if c.position is None else tuple(np.round(c.position, 6)))
+        st = self._admittance.get(limb)
+        if st is None or st[0] != key:
+            st = self._admittance[limb] = [key, 0.0]
+        normals = self._normals_cache.get(id(c))
+        if normals is None:
+            normals = self._normals_cache[id(c)] = self._contact_normals(c)
+        n = normals[i if s < 0.5 else i + 1]
+        f_plan_n = float(n @ (tr.forces[limb][i] + s * (tr.forces[limb][i + 1] - tr.forces[limb][i])))
+        f_des = float(np.clip(f_plan_n + g.push_object_gain * float(n @ lead), g.push_min_force,
+                              max(f_plan_n, g.push_min_force) + g.push_max_extra))
+        f_meas = float(n @ self.measured_forces[limb])
+        st[1] = float(np.clip(st[1] + self.model.opt.timestep * g.hand_admittance_rate * (f_meas - f_des),
+                              -g.hand_admittance_in, g.hand_admittance_out))
+        self._push_force[limb] = (n, f_des)
+        if len(self.admittance_log) < 200000:
+            self.admittance_log.append((t, limb, st[1], f_meas, f_des))
+        return st[1] * n
 
     def _release_hands(self, data: mujoco.MjData, contacts: dict, t: float, i: int, s: float) -> dict:
         """The phase's contacts less the hand contacts the controller has released (``hand_release``).
@@ -627,6 +689,9 @@ class WholeBodyController:
             return a[i] + s * (a[i + 1] - a[i])
 
         f = lerp(tr.forces[limb])
+        if limb in self._push_force:  # admittance on a pushed object: its desired normal force
+            n, f_des = self._push_force[limb]
+            return f + (f_des - float(n @ f)) * n
         oid = contacts[limb].object_id
         need = self._object_net.get(oid)
         if need is None or np.isnan(need[i, 0]) or np.isnan(need[i + 1, 0]):
@@ -645,6 +710,12 @@ class WholeBodyController:
         self._touched.clear()
         self.released.clear()
         self._swing_start.clear()
+        self._admittance.clear()
+
+    def observe(self, data: mujoco.MjData) -> None:
+        """Read the contact forces of the step just taken (call after ``mj_step2``: only then do
+        MuJoCo's contact list and constraint forces belong to the same step)."""
+        self.measured_forces = self._meter.measure(data)
 
     def trajectory_time(self, data: mujoco.MjData) -> float:
         return float(data.time) - self.t0
@@ -655,6 +726,7 @@ class WholeBodyController:
         t = self.trajectory_time(data)
         i, s = tr.index_at(t)
         after_end = t >= tr.duration
+        self._push_force.clear()
 
         def lerp(a):
             return a[i] + s * (a[i + 1] - a[i])
@@ -723,6 +795,8 @@ class WholeBodyController:
                 p_ref = p_plan = lerp(R_.site_p[limb])
                 if g.hand_follows_object and limb in contacts and contacts[limb] is not None:
                     p_ref = self._on_actual_object(data, contacts[limb].object_id, p_ref, i, s)
+                    if g.hand_push_admittance:
+                        p_ref = p_ref + self._push_admittance(data, limb, contacts[limb], t, i, s)
                 R_ref = R_.site_R[limb][i if s < 0.5 else i + 1]
                 wb = released_w[limb]
                 if wb > 0.0:  # released: the plan's hand carried with the torso
