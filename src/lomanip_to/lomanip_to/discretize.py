@@ -94,6 +94,8 @@ def self_pairs(model: G1Model) -> tuple:
     return tuple(pairs)
 
 
+#: m the sole centre keeps from a support surface's edges (sole half-width ~3 cm)
+SOLE_EDGE_MARGIN = 0.06
 #: sine of the largest tilt of a swing sole (3 deg: heel/toe at most ~5 mm lower than the sole centre)
 SWING_TILT = 0.05
 #: limb and waist joint torques are held to this fraction of the G1 limits in the TO (quasi-static rows), so
@@ -775,6 +777,9 @@ class ProblemData:
     def _surface(self, c):
         """(height, centre xy, yaw, half extents xy) of the surface a foot touches."""
         if c.object_id == FLOOR:
+            r = float(self.prob.options.foothold_radius)
+            if c.position is not None and 0.0 < r < INF:  # a square round the schedule's foothold
+                return 0.0, np.asarray(c.position[:2], float), 0.0, np.full(2, r + SOLE_EDGE_MARGIN)
             return 0.0, np.zeros(2), 0.0, np.array([INF, INF])
         o = self.prob.object(c.object_id)
         pose = np.concatenate([np.asarray(o.position, float), o.rpy()])
@@ -810,7 +815,7 @@ class ProblemData:
     def _patch_half(self, c):
         he = self._surface(c)[3]
         # the sole centre must stay 6 cm inside the surface edges (sole half-width ~3 cm)
-        return np.maximum(he - 0.06, 0.0)
+        return np.maximum(he - SOLE_EDGE_MARGIN, 0.0)
 
     def _swing_height(self, k, f):
         K = self.grid.K

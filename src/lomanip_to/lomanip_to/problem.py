@@ -249,6 +249,12 @@ class Options:
                                "right_thigh", "pelvis", "torso", "left_hand", "right_hand",
                                "left_forearm", "right_forearm", "left_upper_arm", "right_upper_arm")
     self_collision: bool = True
+    #: m: a stance foot on the floor stays inside this square round its foothold in the contact
+    #: schedule (0 = anywhere on the floor). The footholds are only a guess otherwise: converged
+    #: plans of the demo push moved a foot up to 29 cm, into stances 8.5 cm wide that left one foot
+    #: carrying the robot; executed under physics, those fell, the two plans within 7 cm did not
+    #: (docs/to.md, session 9)
+    foothold_radius: float = 0.06
     weights: dict = field(default_factory=dict)
     #: extra ipopt options (expert use; e.g. {"mu_strategy": "monotone"})
     ipopt: dict = field(default_factory=dict)
