@@ -710,7 +710,7 @@ class ProblemData:
             for oid, j in self.midx.items():
                 self._object_params(k, oid, j, col, P)
             for i, (s, (oid, pi)) in enumerate(self.pairs):
-                self._pair_params(k, i, s, oid, pi, col, P, expo, penalty, homotopy)
+                self._pair_params(k, i, s, oid, pi, col, P, expo, penalty, homotopy, hard)
 
         # ---------------- warm start
         W0 = np.zeros((W.n, K + 1))
@@ -965,7 +965,7 @@ class ProblemData:
                     return False
         return True
 
-    def _pair_params(self, k, i, s, oid, pi, col, P, expo, penalty, homotopy):
+    def _pair_params(self, k, i, s, oid, pi, col, P, expo, penalty, homotopy, hard=True):
         o = self.prob.object(oid)
         pr = o.primitives[pi]
         sel = np.zeros(len(self.moving) + 1)
@@ -979,7 +979,12 @@ class ProblemData:
             col[P[f"c{i}_pose"]] = np.concatenate([c, R.ravel(order="F")])
             col[P[f"c{i}_loc"]] = [0, 0, 0, 1, 0]
         col[P[f"c{i}_sel"]] = sel
-        col[P[f"c{i}_half"]] = pr.half_extents()
+        # a stage without the hard rows (the homotopy guide) keeps the clearance they will ask for
+        # in its surrogate and penalty: the primitive grows by it.  Without it S1's subtask 0 guide
+        # ended with the shins 1.6 cm into the box (the grasp keyframe's posture has them 8 cm in),
+        # 4.6 cm short of the final stage's 3 cm leg clearance; that stage then started cold, its
+        # barrier stuck at 0.8 for 300 iterations, and it stopped "locally infeasible"
+        col[P[f"c{i}_half"]] = pr.half_extents() + (0.0 if hard else self._clearance(s))
         on = self._pair_enabled(k, s, oid)
         col[P[f"c{i}_w"]] = [self.w["w_pen"] if (penalty and on) else 0.0,
                              self.w["w_hom"] if (homotopy and on) else 0.0, expo]
