@@ -229,8 +229,13 @@ class ProblemData:
                     continue
                 rel0 = _relative_to_base(X[k0], traj[k0])
                 rel1 = _relative_to_base(X[k1], traj[k1])
+                k_end = k1
+                if k_rest >= self.grid.K and not self._goal_in_horizon(oid):
+                    # still carried at the horizon's end (a segment cut at a rest point): it rides
+                    # with the base to the last knot instead of going back to where it started
+                    rel1, k_end = rel0.copy(), k1 + 1
                 rel1[5] = rel0[5] + math.remainder(rel1[5] - rel0[5], 2 * math.pi)
-                for k in range(k0 + 1, k1):
+                for k in range(k0 + 1, k_end):
                     s = (t[k] - t[k0]) / (t[k1] - t[k0])
                     pose = _from_base(X[k], (1 - s) * rel0 + s * rel1)
                     if self.obj_mode(k, oid) in ("supported", "rolling"):
@@ -246,6 +251,10 @@ class ProblemData:
                         pose[:3] = pc[:3] + rpy_to_rot(pc[3:]) @ off[:3]
                         pose[5] = pc[5] + off[3]
                         self.obj_nom[other][k] = pose
+
+    def _goal_in_horizon(self, oid: str) -> bool:
+        t_end = self.grid.t[-1] + 1e-9
+        return any(g.object_id == oid and (g.time is None or g.time <= t_end) for g in self.prob.placement_goals)
 
     def _pushed_stretch(self, X: np.ndarray, oid: str, k0: int, k1: int) -> bool:
         """A held object that rolls or slides on its support towards its goal while the base
@@ -317,6 +326,8 @@ class ProblemData:
         self.kf_knots = {}
         for kf in prob.keyframes:
             t = prob.keyframe_time(kf)
+            if t > self.grid.t[-1] + 1e-6:
+                continue  # after a segment cut at a rest point: anchors the nominal only
             self.kf_knots[int(np.argmin(np.abs(self.grid.t - t)))] = kf
         X = np.tile(self.x_init, (K, 1))
         if opt.use_keyframe_warm_start and prob.keyframes:
@@ -394,6 +405,8 @@ class ProblemData:
         only blended in from the standing one at the keyframe (S1's pick: hands on the box 0.4 s
         before it), the warm start's IK dropped the knees by 1.1 rad in one knot to get there."""
         t = self.grid.t
+        if t_kf > t[-1] + 1e-6:
+            return t_kf, t_kf  # a keyframe after the horizon (a segment cut at a rest point)
         k_kf = int(np.argmin(np.abs(t - t_kf)))
 
         def grip(k):
@@ -404,10 +417,18 @@ class ProblemData:
 
         if not grip(k_kf) or not same(k_kf):
             return t_kf, t_kf
+        held = {oid for _, oid in grip(k_kf)}
+
+        def carried(k):
+            return any(oid in self.midx and self.obj_mode(k, oid) == "free" for oid in held)
+
         k0 = k1 = k_kf
         while k0 > 0 and same(k0 - 1):
             k0 -= 1
-        while k1 < len(t) - 1 and same(k1 + 1):
+        # after the keyframe (a grasp), the hold ends where the held object is lifted: the nominal
+        # stands up in the lift's double stance, not in the first step after it (S1: the squat
+        # was held through the 0.8 s lift and the box rose 0.2 -> 0.66 m on one foot, 3.8-4.5 s)
+        while k1 < len(t) - 1 and same(k1 + 1) and not carried(k1 + 1):
             k1 += 1
         return min(t[k0], t_kf), max(t[k1], t_kf)
 

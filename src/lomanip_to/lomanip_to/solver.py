@@ -376,11 +376,11 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
         build_time = time.perf_counter() - t_start
         x_init = np.asarray(prob.initial_configuration, float)
         poses = {o.id: np.concatenate([np.asarray(o.position, float), o.rpy()]) for o in prob.objects}
-        parts, converged, status = [], True, ""
+        parts, converged, status, grips = [], True, "", {}
         for i, (t0, t1) in enumerate(segs):
-            sp = segment_problem(prob, t0, t1, x_init, poses)
+            sp = segment_problem(prob, t0, t1, x_init, poses, grips)
             sd = ProblemData(sp, model, moving=data.moving, pairs=data.pairs, stand=data.x_init)
-            where = f"subtask {i} ({t0:.1f}-{t1:.1f} s)"
+            where = f"subtask {sp.phases[0].subtask_index} ({t0:.1f}-{t1:.1f} s)"
             res = _run_stages(run, sd, win, wd, threads, where + " ")
             parts.append((sd, res))
             if not _converged(res[3]):
@@ -391,6 +391,7 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
             x_init = Wm[win.W["x"], sd.grid.K - 1].copy()
             for oid, j in sd.midx.items():
                 poses[oid] = Wm[win.W[f"o{j}_pose"], sd.grid.K - 1].copy()
+            grips = _grips_at_end(win, sd, res[6])
         if converged:
             stalled = [st["stage"].strip() for st in run.stages if st["status"] == STALLED_STATUS]
             status = f"{STALLED_STATUS} ({'; '.join(stalled)})" if stalled else "Solve_Succeeded"
@@ -438,26 +439,98 @@ def get_nlp(wd, structure, K: int, threads: int = 2) -> AssembledNLP:
     return _NLPS[nkey]
 
 
-def segments(prob: Problem) -> list:
-    """[(t0, t1)] of consecutive subtasks (phase boundaries where the subtask index changes)."""
+#: a rest point ends a double stance of at least this long (s): time to come to rest in it
+REST_MIN_STANCE = 0.4
+#: neither piece of a subtask cut at a rest point is shorter than this (s)
+REST_MIN_SEGMENT = 0.8
+
+
+def _grip(ph) -> tuple:
+    return tuple(sorted((h, c.object_id) for h, c in ph.contacts.items() if h in HANDS))
+
+
+def _double_stance(ph) -> bool:
+    return ph.phase_type == "stance" and all(f in ph.contacts for f in FEET)
+
+
+def rest_points(prob: Problem) -> list:
+    """Times inside a subtask at which its segment can be cut with the robot at rest: the end of a
+    double-stance phase of at least ``REST_MIN_STANCE`` after which walking starts or the hands'
+    contacts change, with no object changing its motion mode there and no push going on across
+    it (a hand on a sliding or rolling object on both sides), and both pieces of the subtask at
+    least ``REST_MIN_SEGMENT`` long.  Every segment ends at rest (robot and objects), so a cut
+    there only asks for a stop the schedule already has room for.
+
+    Used when ``Options.rest_segments`` is on (off by default).  Tried on S1's carry subtask (lift
+    in double stance, six steps, set down, release, retract: one NLP of 64 knots that hits its
+    guide's iteration cap): the 0.8 s lift piece converges but ends with the box barely lifted,
+    and the carry piece from there did not converge (docs/to.md, session 9)."""
+    out = []
+    phases = prob.phases
+    for sub in sorted({ph.subtask_index for ph in phases}):
+        idx = [i for i, ph in enumerate(phases) if ph.subtask_index == sub]
+        t_start, t_end = phases[idx[0]].start, phases[idx[-1]].end
+        last = t_start
+        for i in idx[:-1]:
+            ph, nx = phases[i], phases[i + 1]
+            if not (_double_stance(ph) and ph.end - ph.start >= REST_MIN_STANCE - 1e-9):
+                continue
+            if not (nx.phase_type == "walking" or _grip(nx) != _grip(ph)):
+                continue
+            modes = {o: m.mode for o, m in ph.objects.items()}
+            if modes != {o: m.mode for o, m in nx.objects.items()}:
+                continue
+            held = {c.object_id for h, c in ph.contacts.items() if h in HANDS}
+            held &= {c.object_id for h, c in nx.contacts.items() if h in HANDS}
+            if any(modes.get(o) in ("supported", "rolling") for o in held):
+                continue  # a push goes on across it: the pushed object would have to stop there
+            if ph.end - last >= REST_MIN_SEGMENT - 1e-9 and t_end - ph.end >= REST_MIN_SEGMENT - 1e-9:
+                out.append(ph.end)
+                last = ph.end
+    return out
+
+
+def segments(prob: Problem, rest: bool | None = None) -> list:
+    """[(t0, t1)] of the pieces solved one after the other: consecutive subtasks (phase boundaries
+    where the subtask index changes), each also cut at its :func:`rest_points` when ``rest`` (by
+    default ``Options.rest_segments``)."""
+    rest = prob.options.rest_segments if rest is None else rest
+    cuts = set(rest_points(prob)) if rest else set()
     out, t0 = [], 0.0
     for i, ph in enumerate(prob.phases):
         last = i == len(prob.phases) - 1
-        if last or prob.phases[i + 1].subtask_index != ph.subtask_index:
+        if last or prob.phases[i + 1].subtask_index != ph.subtask_index or ph.end in cuts:
             out.append((t0, ph.end))
             t0 = ph.end
     return out
 
 
-def segment_problem(prob: Problem, t0: float, t1: float, x_init, poses: dict) -> Problem:
+def segment_problem(prob: Problem, t0: float, t1: float, x_init, poses: dict, grips: dict | None = None) -> Problem:
     """The sub-problem on [t0, t1], shifted to start at 0, starting at rest in ``x_init`` with the
-    objects at ``poses`` (p, rpy)."""
+    objects at ``poses`` (p, rpy).
+
+    ``grips`` (hand -> (object id, contact point, normal), both in the object's frame) are the
+    grips held at t0, as the previous segment had them (:func:`_grips_at_end`).  A segment cut at a
+    rest point starts with the object already moved: the schedule's contact points (world, at the
+    object's pose when the grip began) are re-expressed at its pose at t0 for the phases that go on
+    holding it, so the grip stays where it was on the object.  Keyframes of the segment's subtasks
+    after t1 stay in (they only anchor the warm start's nominal, see ``ProblemData``)."""
     from dataclasses import replace
 
     from .model import rot_to_quat_xyzw
 
     phases = [replace(ph, start=ph.start - t0, end=ph.end - t0) for ph in prob.phases
               if ph.start >= t0 - 1e-9 and ph.end <= t1 + 1e-9]
+    for h, (oid, loc, n) in (grips or {}).items():
+        pose = np.asarray(poses[oid], float)
+        R = rpy_to_rot(pose[3:])
+        pos_w = tuple(float(v) for v in pose[:3] + R @ np.asarray(loc, float))
+        n_w = tuple(float(v) for v in R @ np.asarray(n, float))
+        for i, ph in enumerate(phases):
+            c = ph.contacts.get(h)
+            if c is None or c.object_id != oid:
+                break
+            phases[i] = replace(ph, contacts={**ph.contacts, h: replace(c, position=pos_w, normal=n_w)})
     subs = {ph.subtask_index for ph in phases}
     kfs = [replace(kf, time=prob.keyframe_time(kf) - t0) for kf in prob.keyframes if kf.subtask_index in subs]
     goals = []
@@ -471,6 +544,19 @@ def segment_problem(prob: Problem, t0: float, t1: float, x_init, poses: dict) ->
         objs.append(replace(o, position=tuple(pose[:3]), quat_xyzw=tuple(rot_to_quat_xyzw(rpy_to_rot(pose[3:])))))
     return Problem(objects=objs, keyframes=kfs, phases=phases, initial_configuration=tuple(x_init),
                    placement_goals=goals, options=prob.options, name=f"{prob.name}[{t0:.1f}-{t1:.1f}]")
+
+
+def _grips_at_end(win: Window, sd: ProblemData, Pm: np.ndarray) -> dict:
+    """hand -> (object id, contact point, normal in the object's frame) of the grips held at the
+    segment's last knot (the parameters its rows used)."""
+    out = {}
+    k = sd.grid.K - 1
+    for h in HANDS:
+        c = sd.contact(k, h)
+        if c is None or c.object_id not in sd.midx:
+            continue
+        out[h] = (c.object_id, Pm[win.P[f"{h}_loc"], k].copy(), Pm[win.P[f"{h}_n"], k].copy())
+    return out
 
 
 def _stitch(win: Window, data: ProblemData, parts) -> tuple:
