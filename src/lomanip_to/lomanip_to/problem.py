@@ -240,8 +240,8 @@ class Options:
     #: solve subtask by subtask (at rest at subtask boundaries), stitch, then polish the whole horizon
     subtask_segments: bool = True
     #: also cut a subtask's segment at its internal rest points (:func:`lomanip_to.solver.rest_points`:
-    #: the end of a double stance of at least 0.4 s before walking starts or the hands' contacts
-    #: change), so each NLP is shorter and starts and ends at rest.  Off: on S1's carry the piece
+    #: the end of a double stance of at least 0.4 s before walking starts or the hands take a new
+    #: hold), so each NLP is shorter and starts and ends at rest.  Off: on S1's carry the piece
     #: after the lift did not converge where the whole subtask did (docs/to.md, session 9)
     rest_segments: bool = False
     #: iteration cap of the whole-horizon polish after the subtask solves (0 = keep the stitched one).

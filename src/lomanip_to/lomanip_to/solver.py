@@ -455,10 +455,10 @@ def _double_stance(ph) -> bool:
 
 def rest_points(prob: Problem) -> list:
     """Times inside a subtask at which its segment can be cut with the robot at rest: the end of a
-    double-stance phase of at least ``REST_MIN_STANCE`` after which walking starts or the hands'
-    contacts change, with no object changing its motion mode there and no push going on across
-    it (a hand on a sliding or rolling object on both sides), and both pieces of the subtask at
-    least ``REST_MIN_SEGMENT`` long.  Every segment ends at rest (robot and objects), so a cut
+    double-stance phase of at least ``REST_MIN_STANCE`` after which walking starts or the hands
+    take a new hold (not a release), with no object changing its motion mode there and no push
+    going on across it (a hand on a sliding or rolling object on both sides), and both pieces of
+    the subtask at least ``REST_MIN_SEGMENT`` long.  Every segment ends at rest (robot and objects), so a cut
     there only asks for a stop the schedule already has room for.
 
     Used when ``Options.rest_segments`` is on (off by default).  Tried on S1's carry subtask (lift
@@ -476,6 +476,11 @@ def rest_points(prob: Problem) -> list:
             if not (_double_stance(ph) and ph.end - ph.start >= REST_MIN_STANCE - 1e-9):
                 continue
             if not (nx.phase_type == "walking" or _grip(nx) != _grip(ph)):
+                continue
+            if set(_grip(ph)) - set(_grip(nx)):
+                # a release: the hand is still at the contact at its first free knot, where the
+                # hand-object pairs are off; a segment starting there has them on (S1's release
+                # piece: left wrist 5 cm in the box at its fixed first knot, infeasible)
                 continue
             modes = {o: m.mode for o, m in ph.objects.items()}
             if modes != {o: m.mode for o, m in nx.objects.items()}:
