@@ -229,7 +229,7 @@ class Simulation:
                             r = d.xpos[p.body] + d.xmat[p.body].reshape(3, 3) @ p.point_local - d.xipos[p.body]
                             d.xfrc_applied[p.body, 3:6] += np.cross(r, p.force)
                 mujoco.mj_step2(m, d)
-                if cmd is None and tau is not None and self._command is None:
+                if cmd is None and self._command is None:
                     observe = getattr(self.controller, "observe", None)
                     if observe is not None:  # contact forces of this step (valid only after mj_step2)
                         observe(d)

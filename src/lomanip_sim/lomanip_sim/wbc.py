@@ -289,6 +289,7 @@ class WholeBodyController:
         self._scratch = mujoco.MjData(m)
         self.detours: list[Detour] = []
         self._object_turn: dict[str, np.ndarray] = {}  # object -> (N,3,3) planned rotation since t = 0
+        self._normals: dict = {}  # id(contact) -> (N,3) normals along the grid (_contact_normals)
         self._object_body: dict[str, tuple] = {}  # object -> (body id, CoM offset in the body frame)
         self._detoured = {l: np.zeros(traj.n, bool) for l in HANDS}
         self._arm_only = {l: np.zeros(traj.n, bool) for l in HANDS}  # hand position task on its own arm only
@@ -315,8 +316,6 @@ class WholeBodyController:
         self.measured_forces = {l: np.zeros(3) for l in (*FEET, *HANDS)}  # on the robot, after the last step
         self._admittance: dict = {}  # hand -> [contact, normal shift (m)] while pushing a floor object
         self._push_force: dict = {}  # hand -> (normal, desired normal force on the robot) this step
-        self._normals_cache: dict = {}
-        self.admittance_log: list[tuple[float, str, float, float, float]] = []  # (t, hand, shift, f_n meas, f_n desired)
 
     # ---------------------------------------------------------------------------- references
     def _precompute_refs(self) -> _Refs:
@@ -421,60 +420,52 @@ class WholeBodyController:
                 out[b] = (np.repeat(q0[None, :3], tr.n, 0), np.repeat(q0[None, 3:], tr.n, 0))
         return out
 
+    def _object_frames(self, data: mujoco.MjData, oid: str, i: int, s: float, lifted: bool = False):
+        """(actual CoM, actual R, planned CoM, planned R) at grid time i + s of an object the hands
+        follow: one the plan keeps at one height (pushed on the floor), or any if ``lifted``; else None."""
+        tr = self.traj
+        if oid not in tr.objects:
+            return None
+        body = self._object_body.get(oid)
+        if body is None:
+            name = self.world.objects[oid].body_name if oid in self.world.objects else oid
+            b = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)
+            body = self._object_body[oid] = (b, self._com_offset(b) if b >= 0 else None)
+        b, off = body
+        if b < 0:
+            return None
+        P, Q = tr.objects[oid]
+        if np.ptp(P[:, 2]) > 0.01 and not lifted:  # a lifted object: the hands carry it to the plan (a slipping box is not followed)
+            return None
+        R_act = data.xmat[b].reshape(3, 3)
+        return (data.xpos[b] + R_act @ off, R_act, P[i] + s * (P[i + 1] - P[i]),
+                frames.quat_to_matrix(Q[i if s < 0.5 else i + 1]))
+
     def _on_actual_object(self, data: mujoco.MjData, oid: str, p: np.ndarray, i: int, s: float,
                           lifted: bool = False) -> np.ndarray:
         """``p`` (on the planned object at grid time i + s) carried to the object's actual pose; only
         for objects the plan keeps at one height (pushed on the floor) unless ``lifted``:
         case_lift_box's box slid 1-2 cm in the grasp, hands that followed it left it 8.4 cm below its goal."""
-        tr = self.traj
-        if oid not in tr.objects:
+        fr = self._object_frames(data, oid, i, s, lifted)
+        if fr is None:
             return p
-        body = self._object_body.get(oid)
-        if body is None:
-            name = self.world.objects[oid].body_name if oid in self.world.objects else oid
-            body = self._object_body[oid] = (mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name), None)
-        b = body[0]
-        if b < 0:
-            return p
-        if body[1] is None:
-            body = self._object_body[oid] = (b, self._com_offset(b))
-        P, Q = tr.objects[oid]
-        if np.ptp(P[:, 2]) > 0.01 and not lifted:  # a lifted object: the hands carry it to the plan (a slipping box is not followed)
-            return p
-        c_plan = P[i] + s * (P[i + 1] - P[i])
-        R_plan = frames.quat_to_matrix(Q[i if s < 0.5 else i + 1])
-        R_act = data.xmat[b].reshape(3, 3)
-        c_act = data.xpos[b] + R_act @ body[1]
+        c_act, R_act, c_plan, R_plan = fr
         return c_act + R_act @ (R_plan.T @ (p - c_plan))
-
-    def _object_lead(self, data: mujoco.MjData, oid: str, i: int, s: float) -> np.ndarray | None:
-        """Actual minus planned CoM of an object the plan pushes along the floor (None otherwise)."""
-        tr = self.traj
-        if oid not in tr.objects or oid not in self._object_body:  # _on_actual_object resolves the body first
-            return None
-        b, off = self._object_body[oid]
-        P = tr.objects[oid][0]
-        if b < 0 or off is None or np.ptp(P[:, 2]) > 0.01:
-            return None
-        return data.xpos[b] + data.xmat[b].reshape(3, 3) @ off - (P[i] + s * (P[i + 1] - P[i]))
 
     def _push_admittance(self, data: mujoco.MjData, limb: str, c, t: float, i: int, s: float) -> np.ndarray:
         """Shift (3,) of the hand reference along the contact normal (``WbcGains.hand_push_admittance``);
         also sets the desired normal force that :meth:`hand_feedforward` feeds forward."""
         g, tr = self.g, self.traj
-        self._push_force.pop(limb, None)
-        lead = self._object_lead(data, c.object_id, i, s)
-        if lead is None or limb not in tr.forces:
+        fr = self._object_frames(data, c.object_id, i, s)
+        if fr is None or limb not in tr.forces:
             self._admittance.pop(limb, None)
             return np.zeros(3)
+        lead = fr[0] - fr[2]  # the object's actual minus planned CoM
         key = (c.object_id, None if c.position is None else tuple(np.round(c.position, 6)))
         st = self._admittance.get(limb)
         if st is None or st[0] != key:
             st = self._admittance[limb] = [key, 0.0]
-        normals = self._normals_cache.get(id(c))
-        if normals is None:
-            normals = self._normals_cache[id(c)] = self._contact_normals(c)
-        n = normals[i if s < 0.5 else i + 1]
+        n = self._contact_normals(c)[i if s < 0.5 else i + 1]
         f_plan_n = float(n @ (tr.forces[limb][i] + s * (tr.forces[limb][i + 1] - tr.forces[limb][i])))
         f_des = float(np.clip(f_plan_n + g.push_object_gain * float(n @ lead), g.push_min_force,
                               max(f_plan_n, g.push_min_force) + g.push_max_extra))
@@ -482,8 +473,6 @@ class WholeBodyController:
         st[1] = float(np.clip(st[1] + self.model.opt.timestep * g.hand_admittance_rate * (f_meas - f_des),
                               -g.hand_admittance_in, g.hand_admittance_out))
         self._push_force[limb] = (n, f_des)
-        if len(self.admittance_log) < 200000:
-            self.admittance_log.append((t, limb, st[1], f_meas, f_des))
         return st[1] * n
 
     def _release_hands(self, data: mujoco.MjData, contacts: dict, t: float, i: int, s: float) -> dict:
@@ -598,15 +587,21 @@ class WholeBodyController:
     def _contact_normals(self, c) -> np.ndarray:
         """(N,3) unit outward normal of contact ``c`` along the grid, turned with its object's planned
         orientation relative to the plan's start (the TO does the same with its contact normals)."""
+        out = self._normals.get(id(c))
+        if out is not None:
+            return out
         tr = self.traj
         n = np.asarray(c.normal, float) / max(np.linalg.norm(c.normal), 1e-9)
         if not self.g.hand_normal_follows_object or c.object_id not in tr.objects:
-            return np.repeat(n[None], tr.n, 0)
-        rel = self._object_turn.get(c.object_id)
-        if rel is None:
-            R = np.array([frames.quat_to_matrix(q) for q in tr.objects[c.object_id][1]])
-            rel = self._object_turn[c.object_id] = R @ R[0].T
-        return rel @ n
+            out = np.repeat(n[None], tr.n, 0)
+        else:
+            rel = self._object_turn.get(c.object_id)
+            if rel is None:
+                R = np.array([frames.quat_to_matrix(q) for q in tr.objects[c.object_id][1]])
+                rel = self._object_turn[c.object_id] = R @ R[0].T
+            out = rel @ n
+        self._normals[id(c)] = out
+        return out
 
     def _pyramid(self, normal, mu: float) -> np.ndarray:
         """(5,3) rows of a linearised friction cone: 4 tangent rows (<= 0) and the normal; cached per normal."""
