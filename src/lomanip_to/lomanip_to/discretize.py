@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .model import FEET, HANDS, LIMBS, SOLE_CENTER, G1Model, rot_to_rpy, rpy_to_rot
+from .model import FEET, HANDS, LIMBS, SOLE_CENTER, SOLE_FORCE_POINTS, G1Model, rot_to_rpy, rpy_to_rot
 from .problem import FLOOR, STANCE, WALKING, Problem, SceneObject
 from .route import footprint_of, point_along, shortest_route
 from .transcription import G, Structure, Window
@@ -675,6 +675,7 @@ class ProblemData:
             for (a, b) in win.st.self_pairs:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
             rows("floor clearance", k, 0, INF)  # smooth, so on in every homotopy stage
+            self._support_rows(k, last, rows)
             rows("feet apart", k, FEET_MIN_LATERAL if k > 0 else -INF, INF)  # knot 0 is the measured start
             # |tau| <= TORQUE_MARGIN tau_max: the rows leave out the distal links' inertia
             rows("joint torques (quasi-static)", k, -TORQUE_MARGIN, TORQUE_MARGIN)
@@ -771,6 +772,31 @@ class ProblemData:
         self._pushing_forces(W0, W)
         W0 = np.clip(W0, lbw, ubw)
         return lbw, ubw, lbg, ubg, Pm, W0
+
+    def _support_rows(self, k: int, last: bool, rows) -> None:
+        """Margins of balance the Options ask for (off by default): the CoM over the sole of a
+        single stance, and the CMP near the centre of pressure (small rate of angular momentum)."""
+        opt = self.prob.options
+        for f in FEET:
+            rows(f"{f} CoM over the sole", k, -INF, INF)
+        rows("angular momentum rate (CMP offset)", k, -INF, INF)
+        rows("CoM inside the double stance", k, -INF, INF)
+        stance = [f for f in FEET if self.contact(k, f) is not None]
+        if len(stance) == 2 and opt.double_support_com_margin is not None:
+            # along: the force points' span less the margin; across: the sole's force points
+            along = SOLE_FORCE_POINTS[:, 0] - SOLE_CENTER[0]
+            across = SOLE_FORCE_POINTS[:, 1] - SOLE_CENTER[1]
+            a = along.max() - opt.double_support_com_margin
+            b = across.max() - opt.double_support_com_margin
+            rows("CoM inside the double stance", k, [-a, -INF, -b, -INF], [INF, a, INF, b])
+        if len(stance) == 1 and (opt.single_support_com_margin is not None
+                                 or opt.single_support_com_lateral is not None):
+            along = SOLE_FORCE_POINTS[:, 0] - SOLE_CENTER[0]
+            m_al = INF if opt.single_support_com_margin is None else opt.single_support_com_margin
+            m_lat = INF if opt.single_support_com_lateral is None else opt.single_support_com_lateral
+            rows(f"{stance[0]} CoM over the sole", k, [along.min() - m_al, -m_lat], [along.max() + m_al, m_lat])
+        if opt.max_cmp_offset > 0 and not last:
+            rows("angular momentum rate (CMP offset)", k, -opt.max_cmp_offset, opt.max_cmp_offset)
 
     def _pushing_forces(self, W0: np.ndarray, W) -> None:
         """Warm-start forces of an object that rolls or slides while hands hold it: its supports

@@ -260,6 +260,19 @@ class Options:
     #: carrying the robot; executed under physics, those fell, the two plans within 7 cm did not
     #: (docs/to.md, session 9)
     foothold_radius: float = 0.06
+    #: m: in a single stance the CoM's ground point stays along the stance sole within its force
+    #: points plus this margin (None = off); ``single_support_com_lateral`` bounds it across the sole
+    #: (m from the sole's centre line). Why: the demo pushes that fell under physics balanced their
+    #: single stances with the CoM 5-7 cm behind the heel (docs/execution.md, session 9)
+    single_support_com_margin: float | None = None
+    single_support_com_lateral: float | None = None
+    #: m: in a double stance the CoM's ground point stays this far inside the support of both soles'
+    #: force points (None = off). Why: the demo pushes fell backwards in the stance after their
+    #: approach walk, planned with the CoM on the heels' force points (docs/execution.md, session 10)
+    double_support_com_margin: float | None = None
+    #: m: bound on the horizontal rate of angular momentum about the CoM over the robot's weight,
+    #: i.e. how far the centroidal moment pivot may leave the centre of pressure (0 = off)
+    max_cmp_offset: float = 0.0
     weights: dict = field(default_factory=dict)
     #: extra ipopt options (expert use; e.g. {"mu_strategy": "monotone"})
     ipopt: dict = field(default_factory=dict)

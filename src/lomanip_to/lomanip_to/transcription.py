@@ -241,6 +241,9 @@ class Window:
         add("CoM integration", wb["com"] - wa["com"] - dt * wb["comd"])
         add("linear momentum dynamics", wb["comd"] - wa["comd"] - dt * G * (sum_u - ca.DM([0, 0, 1])))
         add("angular momentum dynamics", wb["kk"] - wa["kk"] - dt * G * torque)
+        # rate of angular momentum about the CoM over the weight (m): the horizontal distance of the
+        # centroidal moment pivot from the centre of pressure; bounded only when Options ask for it
+        add("angular momentum rate (CMP offset)", torque[0:2])
         # ---- centroidal consistency (knot rows)
         add("CoM consistency", wa["com"] - com_x)
         add("centroidal momentum consistency (CMM)",
@@ -268,6 +271,11 @@ class Window:
                 cones += [mu_f * u[2, i] - u[0, i], mu_f * u[2, i] + u[0, i],
                           mu_f * u[2, i] - u[1, i], mu_f * u[2, i] + u[1, i]]
             add(f"{f} friction cone", ca.vertcat(*cones))
+            # the CoM's ground point in the sole's frame (along, across): bounded in single stance
+            # when Options ask for a support margin (the plan then never balances a step on momentum)
+            dcom = wa["com"][0:2] - pt[0:2]
+            add(f"{f} CoM over the sole", ca.vertcat(R[0, 0] * dcom[0] + R[1, 0] * dcom[1],
+                                                     R[0, 1] * dcom[0] + R[1, 1] * dcom[1]))
             # swing foot height tracking (walking cost)
             cost += pp["w_stage"] * (1 - pp["b_st"]) * pp[f"{f}_w_swing"] * (pt[2] - pp[f"{f}_swing_h"]) ** 2
 
@@ -413,6 +421,16 @@ class Window:
         # two of them, 68 mm deep on MuJoCo's meshes)
         lat = ca.vertcat(-ca.sin(wa["x"][5]), ca.cos(wa["x"][5]))
         add("feet apart", ca.dot(limbs["left_foot"][0][0:2] - limbs["right_foot"][0][0:2], lat))
+        # the CoM inside a double stance's support, in the base's heading frame: the soles' centres
+        # spread the support by half their offset each way (rear heel to front toe along, outer
+        # edges across; exact for parallel soles). Bounded only when Options ask for a margin
+        head = ca.vertcat(ca.cos(wa["x"][5]), ca.sin(wa["x"][5]))
+        sole_l, sole_r = limbs["left_foot"][0][0:2], limbs["right_foot"][0][0:2]
+        rel = wa["com"][0:2] - 0.5 * (sole_l + sole_r)
+        half_al = 0.5 * _soft_norm(ca.dot(sole_l - sole_r, head))
+        half_ac = 0.5 * _soft_norm(ca.dot(sole_l - sole_r, lat))
+        add("CoM inside the double stance", ca.vertcat(ca.dot(rel, head) + half_al, ca.dot(rel, head) - half_al,
+                                                       ca.dot(rel, lat) + half_ac, ca.dot(rel, lat) - half_ac))
         for (i, j) in st.self_pairs:
             si, sj = m.spheres[i], m.spheres[j]
             dd = ca.sumsqr(spheres[i] - spheres[j]) - (si.radius + sj.radius + pp["self_margin"]) ** 2
