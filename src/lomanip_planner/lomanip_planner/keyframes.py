@@ -27,7 +27,7 @@ from lomanip_to.problem import FLOOR, Options, PlacementGoal, Problem, SceneObje
 
 from lomanip_to.route import footprint_of
 
-from .retargeting import FEET, HANDS, LimbTarget, RetargetTarget, Retargeter, RetargetingError
+from .retargeting import FEET, HANDS, LimbTarget, Obstacle, RetargetTarget, Retargeter, RetargetingError
 from .schedule import Schedule, actions_of, Stance, SubtaskKeyframe, Timing, plan_schedule
 from .symmetry import best_grasp_match, rotate_about, stance_cost, stance_yaw, yaw_symmetries
 
@@ -124,6 +124,29 @@ def push_goal(obj: SceneObject, d: "_Displacement | None" = None, distance: floa
     return PlacementGoal(o.id, tuple(float(v) for v in p), float(yaw))
 
 
+def obstacles_of(obj: SceneObject) -> list[Obstacle]:
+    """The object's primitives as IK obstacles, in the world at the object's pose."""
+    from lomanip_sim import frames as fr
+
+    x, y, z, w = obj.quat_xyzw
+    R = fr.quat_to_matrix(np.array([w, x, y, z], float))
+    out = []
+    for p in obj.primitives:
+        c, s = np.cos(p.yaw), np.sin(p.yaw)
+        Rp = R @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        half = p.half_extents()
+        size = half if p.kind == "box" else half[[0, 2]]   # cylinder: radius, half height
+        out.append(Obstacle(obj.id, p.kind, size, np.asarray(obj.position, float) + R @ np.asarray(p.position, float),
+                            fr.matrix_to_quat(Rp)))
+    return out
+
+
+def scene_obstacles(objects: list[SceneObject], moved: dict[str, "_Displacement"]) -> tuple[Obstacle, ...]:
+    """Every object's primitives where the plan has the object at this keyframe (moved by earlier
+    subtasks): the retargeting IK keeps the robot clear of them."""
+    return tuple(o for obj in objects for o in obstacles_of(_as_placed(obj, moved.get(obj.id))))
+
+
 def _displaced(d: "_Displacement | None", t: LimbTarget) -> LimbTarget:
     return d.moved(t) if d is not None else t
 
@@ -206,7 +229,7 @@ def _orient(st: SubtaskPerception, by_id: dict[str, SceneObject], moved: dict[st
 
 
 def _solve_keyframe(retargeter: Retargeter, st: SubtaskPerception, targets: tuple, base_orientation,
-                    q: np.ndarray | None):
+                    q: np.ndarray | None, obstacles: tuple[Obstacle, ...] = ()):
     """The keyframe's IK, relaxed step by step until it is feasible: the person's feet and pelvis
     height; then floor feet that may slide (the demonstrator's stance is an adult's: the G1 steps
     to where it reaches); then without the pelvis height (differential IK is local: a height the
@@ -218,7 +241,7 @@ def _solve_keyframe(retargeter: Retargeter, st: SubtaskPerception, targets: tupl
     for slide, ratio in ladder:
         try:
             res = retargeter.solve(RetargetTarget(targets, base_orientation, st.joint_prior, floor_feet_slide=slide,
-                                                  pelvis_height_ratio=ratio), q)
+                                                  pelvis_height_ratio=ratio, obstacles=obstacles), q)
             return res, slide
         except RetargetingError as exc:
             error = exc
@@ -274,7 +297,8 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
                 if c.object_id not in by_id:
                     raise RetargetingError(-2, f"subtask {st.index}: {limb} touches unknown object {c.object_id!r}")
                 targets.append(LimbTarget(limb, np.asarray(c.position, float), np.asarray(c.normal, float), c.object_id))
-        res, slid = _solve_keyframe(retargeter, st, tuple(targets), base_orientation, q)
+        res, slid = _solve_keyframe(retargeter, st, tuple(targets), base_orientation, q,
+                                    scene_obstacles(objects, moved))
         if slid:
             targets = [LimbTarget(t.limb, res.contact_points[t.limb].copy(), t.normal, t.object_id)
                        if t.limb in FEET else t for t in targets]

@@ -14,7 +14,11 @@ its QP step used inside a Levenberg-Marquardt descent (``lomanip_planner.ik``) s
 * the pelvis is pulled up to the human's pelvis height (relative to leg length), never down;
 * several starts (the current pose, standing, squatting, arms up, in front of the hands' targets)
   descend; the collision-free one that reaches its contacts with the lowest cost wins;
-* joint limits and self-collision (arms vs torso, leg vs leg, hands vs thighs) are hard limits.
+* joint limits and self-collision (arms vs torso, leg vs leg, hands vs thighs) are hard limits;
+* so is clearance from the scene's objects (:class:`Obstacle`: the primitives of every object where
+  the plan has it at this keyframe): every robot collision geom keeps ``OBJECT_CLEARANCE`` from
+  them, except a contacting hand's wrist and hand against the object it touches and a foot against
+  the object it stands on.
 
 Simplification (named): hand orientation is not constrained (point contacts, as in the TO).
 """
@@ -29,9 +33,8 @@ import mink
 import mujoco
 import numpy as np
 
-from lomanip_sim import frames
-from lomanip_sim.robot_model import G1_JOINT_NAMES
-from lomanip_sim.world import build_robot_model
+from lomanip_sim import frames, world
+from lomanip_sim.robot_model import G1_JOINT_NAMES, g1_mjcf_path
 
 from .ik import ComOverFeetTask, DescentResult, PelvisFloorTask, minimise
 
@@ -54,6 +57,38 @@ _SELF_COLLISION_BODIES = (
     (("left_wrist_yaw_link",), ("right_wrist_yaw_link",)),
 )
 
+#: clearance the IK keeps between the robot's collision geoms and the scene's objects (m). Without
+#: it S1's pick keyframe had both knees and thighs 9-10 cm inside the box being picked up, and the
+#: TO had to push the legs out (issue 5)
+OBJECT_CLEARANCE = 0.015
+#: a keyframe deeper than this inside an object is infeasible (m)
+OBJECT_PENETRATION_TOLERANCE = 0.002
+#: weight of the soft clearance (:class:`ObjectClearanceTask`), as the feet's
+OBJECT_CLEARANCE_COST = 1000.0
+#: the hard limit keeps this much more than the soft clearance (m). With both at one distance a
+#: step the limit allowed often crossed the clearance by its linearisation error, the cost rose,
+#: the descent refused it and crawled: S1's pick took 600 instead of 450 steps and S2's push
+#: keyframe 700 instead of 541, ending elsewhere
+OBJECT_LIMIT_MARGIN = 0.002
+#: pairs nearer than this (m) are limited in a step (mink's collision_detection_distance; the
+#: self-collision limit's 0.15 m made several times more distance queries). A pair farther away
+#: that one step would take inside an object raises the clearance cost, so the step is refused
+OBJECT_DETECTION_DISTANCE = 0.05
+#: obstacle geoms the IK model holds; a scene with more primitives keeps those nearest the contacts
+MAX_OBSTACLES = 32
+#: bodies of a limb that touch the object its contact is on, so are not kept clear of that object:
+#: a hand's contact site is the centre of its collision box, and the sole spheres rest on the surface
+_CONTACT_BODIES = {
+    "left_hand": ("left_wrist_roll_link", "left_wrist_pitch_link", "left_wrist_yaw_link"),
+    "right_hand": ("right_wrist_roll_link", "right_wrist_pitch_link", "right_wrist_yaw_link"),
+    "left_foot": ("left_ankle_pitch_link", "left_ankle_roll_link"),
+    "right_foot": ("right_ankle_pitch_link", "right_ankle_roll_link"),
+}
+#: a start inside an object is moved away from it in steps of this (m), at most SEED_BACKOFF_MAX
+SEED_BACKOFF = 0.05
+SEED_BACKOFF_MAX = 0.6
+#: where unused obstacle geoms wait (far below the floor, outside every pair anyway)
+_PARKED = (0.0, 0.0, -100.0)
 
 #: weight of the pelvis height prior (hands 100-1000, feet 1000, base orientation 5, posture 0.01)
 PELVIS_HEIGHT_COST = 3.0
@@ -113,6 +148,126 @@ class LimbTarget:
     object_id: str = "floor"
 
 
+def _sphere_to_box_gaps(model: mujoco.MjModel, data: mujoco.MjData, robot: np.ndarray,
+                        obstacle: np.ndarray) -> np.ndarray:
+    """Lower bounds of the pairs' distances (m): each robot geom's bounding sphere to its obstacle
+    geom's box (``geom_aabb``, set to the obstacle's extents). Much tighter than two spheres (mink's
+    broadphase) for a shelf's long legs, so few pairs reach the exact (costly) distance query."""
+    R = data.geom_xmat[obstacle].reshape(-1, 3, 3)
+    local = np.einsum("nji,nj->ni", R, data.geom_xpos[robot] - data.geom_xpos[obstacle])
+    outside = np.maximum(np.abs(local) - model.geom_aabb[obstacle, 3:], 0.0)
+    return np.sqrt(np.einsum("ni,ni->n", outside, outside)) - model.geom_rbound[robot]
+
+
+class ObjectProximity:
+    """The robot-obstacle pairs nearer than ``reach`` at one configuration: their signed distances
+    (MuJoCo's ``mj_geomDistance``) and the distances' Jacobians. Computed once per q and shared by
+    :class:`ObjectClearanceLimit` and :class:`ObjectClearanceTask`, which the descent asks at every
+    step: one distance query per pair and step instead of one per user."""
+
+    def __init__(self, pairs: Sequence[tuple[int, int]], reach: float) -> None:
+        self.pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)   # (robot geom, obstacle geom)
+        self.reach = float(reach)
+        #: the last two configurations: the descent asks at a trial step and, when it refuses it,
+        #: again at the point it came from
+        self._cache: list[tuple[bytes, np.ndarray, np.ndarray, np.ndarray]] = []
+
+    def near(self, configuration: mink.Configuration) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(pair indices, signed distances m, d distance / dq rows) of the pairs within ``reach``."""
+        key = configuration.q.tobytes()
+        for cached in self._cache:
+            if cached[0] == key:
+                return cached[1], cached[2], cached[3]
+        model, data = configuration.model, configuration.data
+        robot, obstacle = self.pairs[:, 0], self.pairs[:, 1]
+        fromto, jac_point = np.zeros(6), np.zeros((3, model.nv))
+        index, distance, rows = [], [], []
+        for i in np.flatnonzero(_sphere_to_box_gaps(model, data, robot, obstacle) < self.reach):
+            d = mujoco.mj_geomDistance(model, data, robot[i], obstacle[i], self.reach, fromto)
+            normal = fromto[3:] - fromto[:3]   # robot witness point -> obstacle's (reversed inside)
+            length = float(np.linalg.norm(normal))
+            if d >= self.reach or length < 1e-12:
+                continue
+            # the obstacle is fixed: d moves with the robot's witness point along the normal
+            mujoco.mj_jac(model, data, jac_point, None, fromto[:3], model.geom_bodyid[robot[i]])
+            index.append(i)
+            distance.append(d)
+            rows.append((-1.0 if d >= 0.0 else 1.0) * (normal / length) @ jac_point)
+        entry = (key, np.asarray(index, dtype=int), np.asarray(distance, float), np.reshape(rows, (-1, model.nv)))
+        self._cache = [entry, *self._cache[:1]]
+        return entry[1], entry[2], entry[3]
+
+
+class ObjectClearanceLimit(mink.Limit):
+    """mink's collision-avoidance rows (``CollisionAvoidanceLimit``: same bound and gain) on the
+    near pairs of an :class:`ObjectProximity`: in a step's linearisation no pair comes closer than
+    ``minimum``, and one farther approaches by at most gain * (d - minimum)."""
+
+    def __init__(self, proximity: ObjectProximity, minimum: float, gain: float = 0.85) -> None:
+        self.proximity = proximity
+        self.minimum = float(minimum)
+        self.gain = float(gain)
+
+    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float) -> mink.Constraint:
+        _, distance, jac = self.proximity.near(configuration)
+        if not len(distance):
+            return mink.Constraint()
+        bound = np.where(distance > self.minimum, self.gain * (distance - self.minimum) / dt, 0.0)
+        return mink.Constraint(G=-jac, h=bound)
+
+
+class ObjectClearanceTask(mink.Task):
+    """Soft side of the object clearance: the ``rows`` nearest pairs inside ``clearance``, each with
+    error min(0, d - clearance).
+
+    The limit only stops a pair from getting closer in the linearised step, and nothing pushes back
+    a pair that the curvature of a limb's motion took below it: over hundreds of steps S1's place
+    keyframe crept from 15 to 11 mm (an elbow by the box) and its basket grab to -0.5 mm. As a cost
+    that is zero outside the clearance (the limit keeps ``OBJECT_LIMIT_MARGIN`` more) this pushes
+    such pairs back out without moving a keyframe that keeps clear; squared, it is continuously
+    differentiable while at most ``rows`` pairs are inside (the limit keeps that few). A few rows,
+    not one per pair (hundreds), keep the QP small.
+    """
+
+    def __init__(self, proximity: ObjectProximity, clearance: float, cost: float, rows: int = 12) -> None:
+        super().__init__(cost=np.full(rows, cost), gain=1.0, lm_damping=0.0)
+        self.proximity = proximity
+        self.clearance = float(clearance)
+        self.rows = rows
+
+    def _inside(self, configuration: mink.Configuration) -> tuple[np.ndarray, np.ndarray]:
+        _, distance, jac = self.proximity.near(configuration)
+        order = [k for k in np.argsort(distance, kind="stable") if distance[k] < self.clearance][:self.rows]
+        return distance[order], jac[order]
+
+    def compute_error(self, configuration: mink.Configuration) -> np.ndarray:
+        distance, _ = self._inside(configuration)
+        error = np.zeros(self.rows)
+        error[:len(distance)] = distance - self.clearance
+        return error
+
+    def compute_jacobian(self, configuration: mink.Configuration) -> np.ndarray:
+        _, jac = self._inside(configuration)
+        out = np.zeros((self.rows, configuration.model.nv))
+        out[:len(jac)] = jac
+        return out
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """One primitive of a scene object, where the plan has the object at this keyframe (world).
+
+    ``kind`` is "box" (``size``: half extents) or "cylinder" (``size``: radius, half height; axis
+    along the primitive's z), as MuJoCo sizes its geoms.
+    """
+
+    object_id: str
+    kind: str
+    size: np.ndarray
+    position: np.ndarray
+    quat_wxyz: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
+
+
 @dataclass(frozen=True)
 class RetargetTarget:
     """What one keyframe must satisfy (world frame)."""
@@ -136,6 +291,9 @@ class RetargetTarget:
     #: human joint angles alone let the shorter-armed G1 sink into a squat far deeper than the
     #: person's (S1's pick: pelvis 0.16-0.19 m while the person's was at 49 % of its leg)
     pelvis_height_ratio: float | None = None
+    #: the scene's solids the robot must stay clear of (contacting limbs excepted, see
+    #: ``_CONTACT_BODIES``); empty = no scene
+    obstacles: tuple[Obstacle, ...] = ()
 
 
 @dataclass
@@ -149,6 +307,10 @@ class RetargetResult:
     seconds: float
     #: limb -> where its contact point ended (feet: sole centre on the surface), world frame
     contact_points: dict[str, np.ndarray] = field(default_factory=dict)
+    #: m, robot geoms vs the target's obstacles, contact pairs excepted (negative = penetration;
+    #: inf without obstacles), and which robot body and object it is
+    min_object_distance: float = float("inf")
+    closest_object_pair: str = ""
 
     @property
     def base_position(self) -> np.ndarray:
@@ -163,6 +325,32 @@ class RetargetResult:
         return dict(zip(G1_JOINT_NAMES, self.qpos[7:].tolist()))
 
 
+def _ik_model(slots: int) -> mujoco.MjModel:
+    """The simulator's G1 (built as ``world.build_robot_model`` builds it, with the same two steps)
+    plus ``slots`` mocap bodies of one geom each, which each solve shapes and poses as its
+    obstacles: a compiled model cannot gain geoms, and MuJoCo's distance queries need robot and
+    obstacles in one model. The obstacle bodies come after the robot's, so every robot body and
+    geom id is the same as in the robot's model (tests/planner/test_retargeting_objects.py)."""
+    try:
+        spec = mujoco.MjSpec.from_file(str(g1_mjcf_path()))
+    except Exception as e:  # mujoco raises plain ValueError on parse problems
+        raise world.WorldBuildError(f"cannot load {g1_mjcf_path()}: {e}") from e
+    world._convert_actuators_to_motors(spec)
+    world._add_hands(spec)
+    for k in range(slots):
+        body = spec.worldbody.add_body()
+        body.name, body.mocap, body.pos = f"ik_obstacle_{k}", True, list(_PARKED)
+        geom = body.add_geom()
+        geom.name, geom.type, geom.size = f"ik_obstacle_{k}", mujoco.mjtGeom.mjGEOM_BOX, [0.01, 0.01, 0.01]
+        geom.contype, geom.conaffinity, geom.group = 0, 1, 4   # touches the robot, not each other
+    return spec.compile()
+
+
+def _bounding_radius(o: Obstacle) -> float:
+    r, h = float(o.size[0]), float(o.size[1])
+    return float(np.linalg.norm(o.size)) if o.kind == "box" else float(np.hypot(r, h))
+
+
 def _finite(v, n: int, what: str) -> np.ndarray:
     a = np.asarray(v, dtype=float).reshape(-1)
     if a.size != n or not np.all(np.isfinite(a)):
@@ -175,7 +363,9 @@ class Retargeter:
 
     def __init__(self, max_iterations: int = 400, screen_iterations: int = 100, contact_tolerance: float = 0.01,
                  solver: str = "daqp") -> None:
-        self.model = build_robot_model()
+        self.model = _ik_model(MAX_OBSTACLES)
+        self._obstacle_geoms = [self.model.geom(f"ik_obstacle_{k}").id for k in range(MAX_OBSTACLES)]
+        self._obstacle_bodies = [self.model.body(f"ik_obstacle_{k}").mocapid[0] for k in range(MAX_OBSTACLES)]
         self.max_iterations = max_iterations
         self.screen_iterations = min(screen_iterations, max_iterations)
         self.contact_tolerance = contact_tolerance
@@ -196,10 +386,15 @@ class Retargeter:
         self.com_task = ComOverFeetTask(FEET, cost=1.0)
         self.posture_task = mink.PostureTask(self.model, cost=1e-2)
         self._pairs = self._collision_pairs()
+        self._robot_geoms = self._robot_collision_geoms()
         self.limits = [mink.ConfigurationLimit(self.model),
                        mink.CollisionAvoidanceLimit(self.model, self._pairs,
                                                     minimum_distance_from_collisions=0.01,
                                                     collision_detection_distance=0.15)]
+        #: (robot geom, obstacle geom, object id) kept apart in the current solve
+        self._object_pairs: list[tuple[int, int, str]] = []
+        self._limits: list[mink.Limit] = list(self.limits)   # the current solve's limits
+        self._clearance_task: ObjectClearanceTask | None = None
 
     def _measure_sole_offset(self) -> float:
         """Height of the foot site above the sole (the lowest point of the foot contact spheres)."""
@@ -227,6 +422,62 @@ class Retargeter:
                     if self.model.geom_bodyid[g] in ids and self.model.geom_contype[g]]
         return [(geoms(a), geoms(b)) for a, b in _SELF_COLLISION_BODIES]
 
+    def _robot_collision_geoms(self) -> list[int]:
+        """Every colliding geom of the robot (the pelvis subtree), the side kept clear of objects."""
+        pelvis = self.model.body("pelvis").id
+        return [g for g in range(self.model.ngeom) if self.model.geom_contype[g]
+                and self.model.body_rootid[self.model.geom_bodyid[g]] == pelvis]
+
+    def _place_obstacles(self, obstacles: Sequence[Obstacle], targets: dict[str, LimbTarget]) -> list[tuple[int, str]]:
+        """Shapes and poses the model's obstacle geoms as ``obstacles`` (the ``MAX_OBSTACLES``
+        nearest the contacts when there are more) and parks the rest; returns (geom, object id)
+        of those in use."""
+        model, data = self.model, self.configuration.data
+        centre = np.mean([t.position for t in targets.values()], axis=0)
+        order = sorted(obstacles, key=lambda o: float(np.linalg.norm(np.asarray(o.position) - centre))
+                       - _bounding_radius(o))
+        placed = []
+        for k, (g, mocap) in enumerate(zip(self._obstacle_geoms, self._obstacle_bodies)):
+            if k >= len(order):
+                data.mocap_pos[mocap], data.mocap_quat[mocap] = _PARKED, (1.0, 0.0, 0.0, 0.0)
+                continue
+            o = order[k]
+            if o.kind not in ("box", "cylinder"):
+                raise RetargetingError(INVALID_REQUEST, f"obstacle of {o.object_id!r} has unknown kind {o.kind!r}")
+            size = _finite(o.size, 3 if o.kind == "box" else 2, f"{o.object_id} obstacle size")
+            quat = _finite(o.quat_wxyz, 4, f"{o.object_id} obstacle orientation")
+            if np.any(size <= 0.0) or np.linalg.norm(quat) < 1e-9:
+                raise RetargetingError(INVALID_REQUEST,
+                                       f"obstacle of {o.object_id!r} has an empty size or a zero quaternion")
+            # MuJoCo's distance functions read the size, the broadphase here the box (geom_aabb)
+            # and MuJoCo's own the bounding radius: all three follow the shape.
+            model.geom_type[g] = mujoco.mjtGeom.mjGEOM_BOX if o.kind == "box" else mujoco.mjtGeom.mjGEOM_CYLINDER
+            model.geom_size[g] = np.append(size, 0.0) if o.kind == "cylinder" else size
+            model.geom_rbound[g] = _bounding_radius(o)
+            model.geom_aabb[g] = np.concatenate([np.zeros(3), size if o.kind == "box" else size[[0, 0, 1]]])
+            data.mocap_pos[mocap] = _finite(o.position, 3, f"{o.object_id} obstacle position")
+            data.mocap_quat[mocap] = quat / np.linalg.norm(quat)
+            placed.append((g, o.object_id))
+        return placed
+
+    def _set_obstacles(self, obstacles: Sequence[Obstacle], targets: dict[str, LimbTarget]) -> None:
+        """This solve's robot-object pairs and limits: every robot collision geom against every
+        obstacle, except the bodies of a limb (``_CONTACT_BODIES``) against the object it touches."""
+        placed = self._place_obstacles(obstacles, targets)
+        touching: dict[str, set[int]] = {}
+        for limb, t in targets.items():
+            bodies = {self.model.body(b).id for b in _CONTACT_BODIES[limb]}
+            touching.setdefault(t.object_id, set()).update(
+                g for g in self._robot_geoms if self.model.geom_bodyid[g] in bodies)
+        self._object_pairs = [(r, g, oid) for g, oid in placed for r in self._robot_geoms
+                              if r not in touching.get(oid, ())]
+        self._limits = list(self.limits)
+        self._clearance_task = None
+        if self._object_pairs:
+            proximity = ObjectProximity([(r, g) for r, g, _ in self._object_pairs], OBJECT_DETECTION_DISTANCE)
+            self._limits.append(ObjectClearanceLimit(proximity, OBJECT_CLEARANCE + OBJECT_LIMIT_MARGIN))
+            self._clearance_task = ObjectClearanceTask(proximity, OBJECT_CLEARANCE, OBJECT_CLEARANCE_COST)
+
     # ------------------------------------------------------------------------------------------
     def solve(self, target: RetargetTarget, initial_qpos: np.ndarray | None = None) -> RetargetResult:
         """A keyframe meeting ``target``; raises :class:`RetargetingError` if none is found.
@@ -240,6 +491,7 @@ class Retargeter:
         self._sliding = {limb for limb, t in targets.items() if limb in FEET and target.floor_feet_slide
                          and t.object_id in ("", "floor")}
         feet = [t for t in targets.values() if t.limb in FEET]
+        self._set_obstacles(target.obstacles, targets)
         base_R = self._base_rotation(target, feet)
         starts = [] if initial_qpos is None else [_finite(initial_qpos, 36, "initial_qpos")]
         starts += [self._seed(name, feet, base_R) for name in ("stand", "squat", "reach_up")]
@@ -250,13 +502,16 @@ class Retargeter:
                 q = self._seed(name, feet, base_R)
                 q[0:2] = (hands_mid - reach * base_R[:, 0])[:2]
                 starts.append(q)
+        starts = [self._clear_seed(q0) for q0 in starts]
         # Every start descends towards a local minimum of the same weighted task cost; the keyframe
         # is the collision-free one that reaches its contacts with the lowest cost (the first start
         # alone often ends bent over a box the human squatted to). Starts are compared after
         # ``screen_iterations``; the best one then descends on to ``max_iterations``.
         def score(outcome: DescentResult) -> tuple[bool, bool, float]:
             worst = max(self._residuals(targets).values())
-            return self._min_self_distance() < 0.0, worst > self.contact_tolerance, outcome.cost
+            collides = self._min_self_distance() < 0.0 or \
+                self._min_object_distance()[0] < -OBJECT_PENETRATION_TOLERANCE
+            return collides, worst > self.contact_tolerance, outcome.cost
 
         best: tuple[tuple[bool, bool, float], np.ndarray, DescentResult] | None = None
         iterations_total = 0
@@ -275,6 +530,47 @@ class Retargeter:
                 best = (refined, q, outcome)
         self.configuration.update(best[1])
         return self._result(targets, iterations_total, time.perf_counter() - t0)
+
+    def _clear_seed(self, q: np.ndarray) -> np.ndarray:
+        """``q`` moved horizontally away from the obstacles it is inside (``SEED_BACKOFF`` steps, at
+        most ``SEED_BACKOFF_MAX``). Why: the clearance limit only stops a pair from getting closer,
+        so a start deep inside an object (the squat seed's knees in the box it picks up) stays
+        there. The contact tasks then pull the limbs back to their targets with the limit active."""
+        q = q.copy()
+        for _ in range(int(round(SEED_BACKOFF_MAX / SEED_BACKOFF))):
+            self.configuration.update(q)
+            worst = self._deepest_obstacle()
+            if worst is None:
+                break
+            away = self.configuration.data.body("pelvis").xpos[:2] - self.configuration.data.geom_xpos[worst][:2]
+            if np.linalg.norm(away) < 1e-6:
+                away = -frames.quat_to_matrix(q[3:7])[:2, 0]
+            q[0:2] += SEED_BACKOFF * away / np.linalg.norm(away)
+        return q
+
+    def _deepest_obstacle(self) -> int | None:
+        """The obstacle geom the current configuration is deepest inside (clearance not kept), or None."""
+        distance, pair = self._closest_object_pair(OBJECT_CLEARANCE)
+        return None if distance >= OBJECT_CLEARANCE else self._object_pairs[pair][1]
+
+    def _closest_object_pair(self, reach: float) -> tuple[float, int]:
+        """(signed distance m, index in ``_object_pairs``) of the closest robot-object pair within
+        ``reach`` in the current configuration; (inf, -1) if none. Pairs are queried nearest bound
+        first and the search stops where the bounds pass the best distance."""
+        if not self._object_pairs:
+            return float("inf"), -1
+        model, data = self.model, self.configuration.data
+        pairs = np.array([(r, g) for r, g, _ in self._object_pairs], dtype=int)
+        gaps = _sphere_to_box_gaps(model, data, pairs[:, 0], pairs[:, 1])
+        fromto = np.zeros(6)
+        best, pair = float("inf"), -1
+        for i in np.argsort(gaps, kind="stable"):
+            if gaps[i] >= min(best, reach):
+                break
+            d = mujoco.mj_geomDistance(model, data, pairs[i, 0], pairs[i, 1], reach, fromto)
+            if d < min(best, reach):
+                best, pair = float(d), int(i)
+        return best, pair
 
     def _seed(self, name: str, feet: list[LimbTarget], base_R: np.ndarray) -> np.ndarray:
         q = self.stand.copy()
@@ -329,7 +625,9 @@ class Retargeter:
             tasks.append(task)
         if len(feet) == 2:   # balance over where the feet are (they may slide)
             tasks.append(self.com_task)
-        outcome = minimise(self.configuration, tasks, self.limits, solver=self.solver,
+        if self._clearance_task is not None:
+            tasks.append(self._clearance_task)
+        outcome = minimise(self.configuration, tasks, self._limits, solver=self.solver,
                            max_iterations=max_iterations)
         return self.configuration.q.copy(), outcome
 
@@ -388,6 +686,15 @@ class Retargeter:
         return float(min(mujoco.mj_geomDistance(model, data, a, b, 0.1, fromto)
                          for a_list, b_list in self._pairs for a in a_list for b in b_list))
 
+    def _min_object_distance(self) -> tuple[float, str]:
+        """Smallest signed distance over this solve's robot-object pairs (m; inf without any within
+        10 m) and "robot body vs object" for it, in the current configuration."""
+        distance, pair = self._closest_object_pair(10.0)
+        if pair < 0:
+            return distance, ""
+        robot, _, object_id = self._object_pairs[pair]
+        return distance, f"{self.model.body(self.model.geom_bodyid[robot]).name} vs {object_id}"
+
     def _residuals(self, targets: dict[str, LimbTarget]) -> dict[str, float]:
         out = {}
         for limb, t in targets.items():
@@ -415,7 +722,9 @@ class Retargeter:
         for limb, t in targets.items():
             p = data.site(limb).xpos.copy()
             points[limb] = p - self.sole_offset * t.normal if limb in FEET else p
-        result = RetargetResult(q, residuals, tilt, float(min_dist), within, iterations, seconds, points)
+        object_dist, closest = self._min_object_distance()
+        result = RetargetResult(q, residuals, tilt, float(min_dist), within, iterations, seconds, points,
+                                object_dist, closest)
         worst = max(residuals, key=residuals.get)
         if residuals[worst] > self.contact_tolerance:
             raise RetargetingError(RETARGETING_INFEASIBLE,
@@ -425,4 +734,7 @@ class Retargeter:
             raise RetargetingError(RETARGETING_INFEASIBLE, "IK left a joint outside its limits")
         if min_dist < 0.0:
             raise RetargetingError(RETARGETING_INFEASIBLE, f"self-collision ({min_dist * 1000:.1f} mm)")
+        if object_dist < -OBJECT_PENETRATION_TOLERANCE:
+            raise RetargetingError(RETARGETING_INFEASIBLE,
+                                   f"{closest.replace(' vs ', ' is inside ')} by {-object_dist * 1000:.1f} mm")
         return result
