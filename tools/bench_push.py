@@ -56,6 +56,8 @@ def run_case(name: str, position, extra_options: dict, out_root: Path) -> dict:
     row = {"case": name, "trolley_position": overrides.get("trolley_position"), "to_status": res.stats.status,
            "to_success": bool(res.success), "to_iterations": res.stats.iterations,
            "plan_time_s": round(time.perf_counter() - t0, 1)}
+    (out_root / name).mkdir(parents=True, exist_ok=True)
+    res.save(out_root / name / "plan.npz")  # TOResult.load reads it back (tools/bench_exec.py style)
     if not res.success:
         return row
     res.densify()

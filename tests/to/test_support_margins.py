@@ -27,11 +27,21 @@ def _single_stance_knots(data):
     return out
 
 
-def test_margins_are_off_by_default(g1):
-    data, win, (_, _, lbg, ubg, _, _) = _filled(g1)
+def test_margins_switch_off(g1):
+    data, win, (_, _, lbg, ubg, _, _) = _filled(g1, single_support_com_margin=None, single_support_com_lateral=None,
+                                                 double_support_com_margin=None, max_cmp_offset=0.0)
     assert _single_stance_knots(data)
-    for name in ("left_foot CoM over the sole", "right_foot CoM over the sole", "angular momentum rate (CMP offset)"):
+    for name in ("left_foot CoM over the sole", "right_foot CoM over the sole", "angular momentum rate (CMP offset)",
+                 "CoM inside the double stance"):
         assert np.all(np.isinf(lbg[win.G[name], :])) and np.all(np.isinf(ubg[win.G[name], :]))
+
+
+def test_defaults_bound_the_com_and_the_cmp(g1):
+    from lomanip_to.problem import Options
+
+    opt = Options()
+    assert opt.single_support_com_margin == 0.0 and opt.single_support_com_lateral == 0.08
+    assert opt.double_support_com_margin == 0.02 and opt.max_cmp_offset == 0.005
 
 
 def test_single_stance_bounds_the_com_along_and_across_the_stance_sole(g1):
@@ -138,3 +148,16 @@ def test_double_stance_row_spans_both_soles(g1):
         val = np.array(g(a, W0[:, k + 1], Pm[:, k])).ravel()[row]
         ok = np.all(val >= lbg[row, k] - 1e-6) and np.all(val <= ubg[row, k] + 1e-6)
         assert ok == inside, (shift, val)
+
+
+def test_knees_stay_bent_after_the_first_phase(g1):
+    data, win, (lbw, _, _, _, _, _) = _filled(g1, min_knee_bend=0.3)
+    knees = [6 + g1.joint_names.index(f"{s}_knee_joint") for s in ("left", "right")]
+    x = win.W["x"]
+    first_end = data.prob.phases[0].end
+    for k, t in enumerate(data.grid.t[:data.grid.K]):
+        lo = lbw[x, k][knees]
+        if k == 0 or t < first_end - 1e-9:
+            assert np.all(lo < 0.3), (k, lo)  # the measured start stands on straight knees
+        else:
+            np.testing.assert_allclose(lo, 0.3)

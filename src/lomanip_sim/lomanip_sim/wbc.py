@@ -79,7 +79,10 @@ class WbcGains:
     hand_stiff_window: float = 0.6  # s before a hand contact starts (and after it ends) the stiff gains apply
     posture_kp: float = 100.0
     posture_kd: float = 20.0
-    w_contact: float = 1e3
+    # a stance sole's zero acceleration, nearly a hard constraint: at 1e3 the QP traded it for the
+    # other tasks at the end of a step, the heel lifted and the foot spun on its toes (the demo push,
+    # docs/execution.md session 10: 2 of 4 plans executed at 1e3, 1 at 1e4, 3 at 1e5)
+    w_contact: float = 1e5
     w_com: float = 100.0
     w_base_ori: float = 50.0
     w_base_pos: float = 50.0  # 5 let the pelvis drift 5-8 cm sideways over S1's first two steps

@@ -533,12 +533,17 @@ class ProblemData:
 
         # ---------------- variable bounds
         q_lo, q_hi = m.gait_q_bounds()
+        knees = [m.joint_names.index(f"{s}_knee_joint") for s in ("left", "right")]
+        bend_from = prob.phases[0].end if prob.phases else INF  # the start is measured (straight knees)
         for k in range(K):
             xl = np.full(35, -INF)
             xu = np.full(35, INF)
             xl[2], xu[2] = 0.2, 1.6
             xl[3:5], xu[3:5] = -0.9, 0.9
             xl[6:], xu[6:] = q_lo, q_hi
+            if opt.min_knee_bend > 0 and t[k] >= bend_from - 1e-9:
+                for j in knees:
+                    xl[6 + j] = max(xl[6 + j], opt.min_knee_bend)
             setb("x", k, xl, xu)
             vmax = np.concatenate([np.full(6, 4.0), m.vel_max])
             setb("xd", k, -vmax, vmax)

@@ -260,19 +260,24 @@ class Options:
     #: carrying the robot; executed under physics, those fell, the two plans within 7 cm did not
     #: (docs/to.md, session 9)
     foothold_radius: float = 0.06
-    #: m: in a single stance the CoM's ground point stays along the stance sole within its force
-    #: points plus this margin (None = off); ``single_support_com_lateral`` bounds it across the sole
-    #: (m from the sole's centre line). Why: the demo pushes that fell under physics balanced their
-    #: single stances with the CoM 5-7 cm behind the heel (docs/execution.md, session 9)
-    single_support_com_margin: float | None = None
-    single_support_com_lateral: float | None = None
-    #: m: in a double stance the CoM's ground point stays this far inside the support of both soles'
-    #: force points (None = off). Why: the demo pushes fell backwards in the stance after their
-    #: approach walk, planned with the CoM on the heels' force points (docs/execution.md, session 10)
-    double_support_com_margin: float | None = None
-    #: m: bound on the horizontal rate of angular momentum about the CoM over the robot's weight,
-    #: i.e. how far the centroidal moment pivot may leave the centre of pressure (0 = off)
-    max_cmp_offset: float = 0.0
+    #: Balance margins, so the whole-body controller can execute the plan (docs/execution.md,
+    #: session 10). m: in a single stance the CoM's ground point stays along the stance sole within
+    #: its force points plus ``single_support_com_margin`` and within ``single_support_com_lateral``
+    #: of the sole's centre line across it; in a double stance it stays ``double_support_com_margin``
+    #: inside the two soles' force points; the horizontal rate of angular momentum about the CoM over
+    #: the weight (how far the centroidal moment pivot leaves the centre of pressure) stays within
+    #: ``max_cmp_offset``. None (0 for the last) switches one off. Why: the demo pushes that fell
+    #: under physics balanced on angular momentum (CMP up to 6 cm from the CoP), which the controller
+    #: does not track, and stood with the CoM on a heel's force points
+    single_support_com_margin: float | None = 0.0
+    single_support_com_lateral: float | None = 0.08
+    double_support_com_margin: float | None = 0.02
+    max_cmp_offset: float = 0.005
+    #: rad: both knees at least this bent after the first phase (0 = the G1's limit). Why: with a
+    #: stance knee at 0.17 rad the executed pelvis, 5 mm above its plan, could only be carried by
+    #: lifting the heel; the foot rolled onto its toes and the robot fell backwards (docs/execution.md,
+    #: session 10)
+    min_knee_bend: float = 0.0
     weights: dict = field(default_factory=dict)
     #: extra ipopt options (expert use; e.g. {"mu_strategy": "monotone"})
     ipopt: dict = field(default_factory=dict)
