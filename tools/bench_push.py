@@ -7,16 +7,22 @@ plans it with the task's TO options, and the whole-body controller executes the 
 scenario's MuJoCo world (torques only, lomanip_sim.execution). Why: whether a push plan executes has
 changed with small changes of the problem (docs/execution.md), so one plan says little; this
 counts over several. Prints per case: TO status, iterations and time, fell (and when), trolley
-distance, max/RMS pelvis error; writes runs/bench_push/summary.json.
+distance, max/RMS pelvis error; writes runs/bench_push/summary.json (summary_replay.json with --replay).
 
     .venv/bin/python tools/bench_push.py                 # 4 cases, about 4 min each on 2 cores
+    .venv/bin/python tools/bench_push.py --cases all     # 8 layouts
     .venv/bin/python tools/bench_push.py --cases base --set double_support_com_margin=null
+    .venv/bin/python tools/bench_push.py --replay        # execute the saved plans again, no TO
+
+Each case saves its plan (plan.npz) and its TO problem (problem.pkl, for the contact schedule) so
+that ``--replay`` measures a controller change on the same plans in seconds instead of minutes.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import pickle
 import sys
 import time
 from pathlib import Path
@@ -30,16 +36,16 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 TASK = ROOT / "ros_ws/config/tasks/push_trolley.yaml"
 #: trolley chassis centre (m) per case; "base" is the demo's own layout
-CASES = {"base": None, "near": [0.80, 0.0], "far_left": [0.90, 0.05], "right": [0.85, -0.05]}
+#: whole-body controller gains of the executions (``--wbc NAME=VALUE`` overrides fields)
+WBC_GAINS = None
+CASES = {"base": None, "near": [0.80, 0.0], "far_left": [0.90, 0.05], "right": [0.85, -0.05],
+         # a second set of layouts, to check a change against plans it was not tuned on (--cases all)
+         "far": [0.90, 0.0], "left": [0.85, 0.05], "near_right": [0.80, -0.05], "far_right": [0.90, -0.05]}
+DEFAULT_CASES = ["base", "near", "far_left", "right"]
 
 
 def run_case(name: str, position, extra_options: dict, out_root: Path) -> dict:
     from lomanip_planner import offline
-    from lomanip_sim.execution import Execution
-    from lomanip_sim.media import save_run
-    from lomanip_sim.scenario import load_scenario
-    from lomanip_sim.simulator import Simulation
-    from lomanip_sim.trajectory import from_to_result
     from lomanip_to import fixtures
 
     task = yaml.safe_load(TASK.read_text())
@@ -58,23 +64,72 @@ def run_case(name: str, position, extra_options: dict, out_root: Path) -> dict:
            "plan_time_s": round(time.perf_counter() - t0, 1)}
     (out_root / name).mkdir(parents=True, exist_ok=True)
     res.save(out_root / name / "plan.npz")  # TOResult.load reads it back (tools/bench_exec.py style)
+    with open(out_root / name / "problem.pkl", "wb") as f:  # our own file, read back by --replay only
+        pickle.dump(plan.problem, f)
     if not res.success:
         return row
+    return execute(row, res, plan.problem, task["scenario"], overrides, out_root / name)
+
+
+def execute(row: dict, res, problem, scenario: str, overrides: dict, out_dir: Path) -> dict:
+    """Run a plan under physics in the scenario's world; ``row`` + the execution metrics."""
+    from lomanip_sim.execution import Execution
+    from lomanip_sim.media import save_run
+    from lomanip_sim.scenario import load_scenario
+    from lomanip_sim.simulator import Simulation
+    from lomanip_sim.trajectory import from_to_result
+
     res.densify()
-    traj = from_to_result(res, plan.problem.phases, scenario=task["scenario"])
-    ex = Execution(Simulation(load_scenario(task["scenario"], overrides)), traj)
+    traj = from_to_result(res, problem.phases, scenario=scenario)
+    ex = Execution(Simulation(load_scenario(scenario, overrides)), traj, gains=WBC_GAINS)
     m = ex.run()
-    save_run(out_root / name, ex, name, video=False)
+    save_run(out_dir, ex, out_dir.name, video=False)
     row.update(m.as_dict())
     return row
 
 
+def replay_case(name: str, position, out_root: Path) -> dict:
+    """Execute the plan a previous run saved for ``name`` (no TO)."""
+    from lomanip_to.result import TOResult
+
+    task = yaml.safe_load(TASK.read_text())
+    overrides = dict(task.get("scenario_overrides") or {})
+    if position is not None:
+        overrides["trolley_position"] = position
+    case_dir = out_root / name
+    if not (case_dir / "plan.npz").is_file() or not (case_dir / "problem.pkl").is_file():
+        raise FileNotFoundError(f"{case_dir} holds no saved plan (plan.npz + problem.pkl): run without --replay first")
+    res = TOResult.load(case_dir / "plan.npz")
+    with open(case_dir / "problem.pkl", "rb") as f:
+        problem = pickle.load(f)
+    row = {"case": name, "trolley_position": overrides.get("trolley_position"), "to_status": res.stats.status,
+           "to_success": bool(res.success), "to_iterations": res.stats.iterations, "plan_time_s": 0.0}
+    if not res.success:
+        return row
+    return execute(row, res, problem, task["scenario"], overrides, case_dir)
+
+
+def _value(text: str):
+    """YAML value of a command-line override; numbers like 1e4 (a string to YAML 1.1) as floats."""
+    v = yaml.safe_load(text)
+    if isinstance(v, str):
+        try:
+            return float(v)
+        except ValueError:
+            return v
+    return v
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--cases", nargs="*", default=list(CASES), choices=list(CASES))
+    ap.add_argument("--cases", nargs="*", default=DEFAULT_CASES, choices=[*CASES, "all"],
+                    help=f"layouts (default {' '.join(DEFAULT_CASES)}; 'all' adds {' '.join(c for c in CASES if c not in DEFAULT_CASES)})")
     ap.add_argument("--set", action="append", default=[], metavar="OPTION=YAML",
                     help="override a TO option of the task, e.g. max_cmp_offset=0 (repeatable)")
     ap.add_argument("--out", default="runs/bench_push")
+    ap.add_argument("--wbc", action="append", default=[], metavar="GAIN=YAML",
+                    help="override a WbcGains field of the controller, e.g. w_contact=1e4 (repeatable)")
+    ap.add_argument("--replay", action="store_true", help="execute the plans saved under --out again (no TO)")
     args = ap.parse_args()
     extra = {}
     for item in args.set:
@@ -82,14 +137,34 @@ def main() -> int:
         if not sep:
             print(f"bench_push: --set expects OPTION=VALUE, got {item!r}", file=sys.stderr)
             return 2
-        extra[key] = yaml.safe_load(val)
+        extra[key] = _value(val)
+    global WBC_GAINS
+    from dataclasses import fields, replace
+
+    from lomanip_sim.wbc import WbcGains
+
+    names = {f.name for f in fields(WbcGains)}
+    gains = {}
+    for item in args.wbc:
+        key, sep, val = item.partition("=")
+        if not sep or key not in names:
+            print(f"bench_push: --wbc expects GAIN=VALUE with a WbcGains field, got {item!r}", file=sys.stderr)
+            return 2
+        gains[key] = _value(val)
+    WBC_GAINS = replace(WbcGains(), **gains)
+    if "all" in args.cases:
+        args.cases = list(CASES)
     out_root = ROOT / args.out
     out_root.mkdir(parents=True, exist_ok=True)
     print(f"{'case':<10}{'TO':>22}{'it':>6}{'plan s':>8}{'fell':>6}{'end s':>7}{'trolley':>9}"
           f"{'pelvis max/rms cm':>19}{'success':>9}")
     rows = []
     for name in args.cases:
-        row = run_case(name, CASES[name], extra, out_root)
+        try:
+            row = replay_case(name, CASES[name], out_root) if args.replay else run_case(name, CASES[name], extra, out_root)
+        except FileNotFoundError as e:
+            print(f"bench_push: {e}", file=sys.stderr)
+            return 2
         rows.append(row)
         if "fell" not in row:
             print(f"{name:<10}{row['to_status'][:21]:>22}{row['to_iterations']:>6}{row['plan_time_s']:>8.0f}  not executed")
@@ -102,7 +177,7 @@ def main() -> int:
     done = [r for r in rows if "fell" in r]
     print(f"executed without a fall {sum(not r['fell'] for r in done)}/{len(rows)}; task success "
           f"{sum(bool(r.get('task_success')) for r in done)}/{len(rows)}; outputs under {out_root}")
-    (out_root / "summary.json").write_text(json.dumps({"options": extra, "rows": rows}, indent=2, default=str))
+    (out_root / ("summary_replay.json" if args.replay else "summary.json")).write_text(json.dumps({"options": extra, "wbc": gains, "rows": rows}, indent=2, default=str))
     return 0
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from to_cases import simulation
 
-from lomanip_sim.robot_model import FOOT_SITES
+from lomanip_sim.robot_model import FOOT_SITES, G1_JOINT_NAMES
 from lomanip_sim.wbc import NJ, WbcGains, WholeBodyController, _rot_error
 
 
@@ -45,8 +45,14 @@ def test_stand_plan_tracked_tightly():
 def test_one_step_foot_really_moves():
     sim, tr = simulation("case_one_step")
     wbc, eb, ej, ejr, feet = _track(sim, tr, tr.duration + 0.5)
-    assert eb < 0.04, f"pelvis error {eb:.3f} m"
-    assert ej < 0.35 and ejr < 0.06, f"joint errors max {ej:.3f} rms {ejr:.3f} rad"
+    # Since session 11 (before: 2.4 cm, < 0.06 rad, stance sole 0.6 cm): the plan's CoM passes 5-9
+    # cm beside the stance sole and the CoM clamp (WbcGains.com_margin) holds it nearer the sole,
+    # now that the free hands no longer pin the body to the plan (free_hand_body_frame); with the
+    # posture task at 0.1 the arms' redundancy lets the elbows run 0.1-0.18 rad off the plan while
+    # the hands are on it. Measured 4.2 cm, 0.10 rad RMS, stance sole 1.4 cm: the price of 9 of 12
+    # demo-push plans executed against 3 (docs/execution.md, session 11)
+    assert eb < 0.05, f"pelvis error {eb:.3f} m"
+    assert ej < 0.35 and ejr < 0.12, f"joint errors max {ej:.3f} rms {ejr:.3f} rad"
     assert wbc.status.qp_failures == 0
     # the swing foot = the one that is not in contact in the middle phase
     mid = tr.phase_at(0.5 * tr.duration)
@@ -58,7 +64,7 @@ def test_one_step_foot_really_moves():
     assert np.linalg.norm(step_planned) > 0.05
     assert np.linalg.norm(step_done - step_planned) < 0.03, (step_done, step_planned)
     assert feet[swing][:, 2].max() - feet[swing][0, 2] > 0.02  # lifted off the floor
-    assert np.linalg.norm(feet[stance][-1] - feet[stance][0]) < 0.01  # the stance foot did not slip
+    assert np.linalg.norm(feet[stance][-1] - feet[stance][0]) < 0.02  # the stance foot hardly slid (1.4 cm)
 
 
 def test_push_during_hold_is_rejected():
@@ -73,6 +79,32 @@ def test_push_during_hold_is_rejected():
             sim.run_for(0.1)
             assert not sim.has_fallen()
         assert np.linalg.norm(sim.base_pose()[0][:2] - tr.base_pos[-1, :2]) < 0.05
+
+
+def test_free_hand_error_does_not_move_the_body():
+    """A free hand off its plan is corrected by its own arm (``free_hand_body_frame``).
+
+    The left arm is put 0.4 rad off the stand plan at the shoulder; the feet's horizontal force
+    (the body's momentum) must not change with the hand tasks on. Measured: 1.5 N with the hands
+    in the torso frame, 40 N with world-frame hands on the full Jacobian (the demo push's falls)."""
+    sim, tr = simulation("case_stand")
+    j = list(G1_JOINT_NAMES).index("left_shoulder_pitch_joint")
+
+    def feet_force(**gains):
+        wbc = WholeBodyController(sim.world, tr, WbcGains(**gains))
+        wbc.reset(sim.data)
+        d = sim.data
+        q0 = d.qpos.copy()
+        d.qpos[wbc.bq + 7 + j] += 0.4
+        mujoco.mj_forward(sim.model, d)
+        wbc.compute(d)
+        d.qpos[:] = q0
+        mujoco.mj_forward(sim.model, d)
+        return sum(wbc.last_forces[f] for f in ("left_foot", "right_foot"))[:2]
+
+    off = feet_force(w_free_hand=0.0, w_free_hand_ori=0.0)
+    assert np.linalg.norm(feet_force() - off) < 5.0
+    assert np.linalg.norm(feet_force(free_hand_body_frame=False) - off) > 20.0
 
 
 def test_references_and_helpers():

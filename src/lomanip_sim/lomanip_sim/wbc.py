@@ -75,6 +75,12 @@ class WbcGains:
     free_hand_kp: float = 400.0
     free_hand_kd: float = 40.0
     w_free_hand: float = 300.0
+    # away from contacts (outside ``hand_stiff_window``) a hand tracks the plan's hand carried with the
+    # actual torso, with its own arm's joints only: a world-frame hand reference pulls the whole body
+    # towards the plan's hand whenever the body lags its plan. In the demo push's approach walk the
+    # free hand tasks (with the posture task) turned the CoM task's +30 N forward into -62 N on the
+    # feet (the CoM task's weight hardly mattered), the CoM fell 19 cm/s behind and the robot fell
+    free_hand_body_frame: bool = True
     w_free_hand_ori: float = 2.0
     hand_stiff_window: float = 0.6  # s before a hand contact starts (and after it ends) the stiff gains apply
     posture_kp: float = 100.0
@@ -84,7 +90,9 @@ class WbcGains:
     # docs/execution.md session 10: 2 of 4 plans executed at 1e3, 1 at 1e4, 3 at 1e5)
     w_contact: float = 1e5
     w_com: float = 100.0
-    w_base_ori: float = 50.0
+    # pelvis (and, while the hands act on their arms only, torso) orientation; with the posture task
+    # at 0.1: 50 executed 3 of 4 of the demo push's layouts, 20 or 10 all 4 (tools/bench_push.py)
+    w_base_ori: float = 20.0
     w_base_pos: float = 50.0  # 5 let the pelvis drift 5-8 cm sideways over S1's first two steps
     w_swing: float = 200.0
     w_hand: float = 300.0
@@ -93,7 +101,12 @@ class WbcGains:
     # orientation, and tracking the planned one stiffly (10) twisted S1's box in the grasp whenever
     # its pose differed from the plan (box 0.3 rad, wrists 1.2 rad off, fell at 3.4 s, at the lift)
     w_hand_ori_contact: float = 0.1
-    w_posture: float = 1.0
+    # per joint; a regulariser below the CoM, pelvis and hand tasks. At 1 the legs' posture (with the
+    # plan's pelvis) fought the CoM task in every single stance of the demo push (the CoM task's
+    # weight hardly changed the feet's forces); 0.03 with no torso task let the waist fold (falls at
+    # 1.1 s); 0.1 with the torso task: 9 of 12 push plans executed (docs/execution.md, session 11).
+    # At 1 on the arms only (the elbows run 0.1-0.18 rad off the plan at 0.1): 1 of 6
+    w_posture: float = 0.1
     w_force: float = 1e-3  # per N^2, towards the planned contact force
     reg_qdd: float = 1e-5
     reg_force: float = 1e-5
@@ -109,6 +122,13 @@ class WbcGains:
     f_max: float = 1500.0  # N per point
     hold_recentre_time: float = 1.0  # s: after the plan ends, the CoM moves over the sole centres
     com_margin: float = 0.03  # m: CoM reference kept this far inside the contact soles' bounding box
+    # s, time constant with which the clamp's shift follows a new support. The box of one sole is its
+    # centre line across (6 cm wide less 2 x 3 cm), and plans walk with the CoM 5-9 cm beside the
+    # stance sole, so at each lift-off the reference jumped by that much: case_one_step's stance
+    # sole slid 1.7 cm (0 s) / 1.4 cm (0.1 s), pelvis error 5.3 / 4.2 cm, with the same 9 of 12
+    # demo-push plans executed. (The clamp to the centre line is what executes them: to the sole's
+    # edges 5 of 12, none across in a single stance 5 of 12; docs/execution.md, session 11)
+    com_clamp_time: float = 0.1
     # s, see WholeBodyController._hand_offsets. Was 0.3: S1's plan brings the right hand (a point in
     # the TO) 2-4 cm over the box's front corner 0.6 s before the grasp, the 13 x 7 x 11 cm hand box
     # caught on that edge and the arm pushed the robot backwards (fell at 2.6 s)
@@ -319,6 +339,7 @@ class WholeBodyController:
         self.measured_forces = {l: np.zeros(3) for l in (*FEET, *HANDS)}  # on the robot, after the last step
         self._admittance: dict = {}  # hand -> [contact, normal shift (m)] while pushing a floor object
         self._push_force: dict = {}  # hand -> (normal, desired normal force on the robot) this step
+        self._com_shift = np.zeros(2)  # the CoM reference's clamp shift (com_margin, com_clamp_time)
 
     # ---------------------------------------------------------------------------- references
     def _precompute_refs(self) -> _Refs:
@@ -709,6 +730,7 @@ class WholeBodyController:
         self.released.clear()
         self._swing_start.clear()
         self._admittance.clear()
+        self._com_shift[:] = 0.0
 
     def observe(self, data: mujoco.MjData) -> None:
         """Read the contact forces of the step just taken (call after ``mj_step2``: only then do
@@ -736,6 +758,7 @@ class WholeBodyController:
         planned = phase.contacts if phase is not None else {f: None for f in FEET}
         contacts = self._release_hands(data, planned, t, i, s) if g.hand_release else planned
         released_w = {limb: self._body_weight(limb, t) for limb in HANDS}  # 0..1 per hand, this step
+        self._body_frame_hands = False
         dofs = self.dofs
         v = data.qvel[dofs]
         qj = data.qpos[self.bq + 7 : self.bq + 7 + NJ]
@@ -800,12 +823,19 @@ class WholeBodyController:
                 if wb > 0.0:  # released: the plan's hand carried with the torso
                     p_body, R_body = self._on_torso(data, p_plan, R_ref, i, s)
                     p_ref = p_ref + wb * (p_body - p_ref)
-                e = p_ref - p
                 stiff = self._hand_stiff[limb][i if s < 0.5 else i + 1]
+                body_frame = g.free_hand_body_frame and not stiff and wb == 0.0
+                if body_frame:  # a free hand: the plan's hand carried with the actual torso, moved by its arm
+                    self._body_frame_hands = True
+                    p_ref, R_ref = self._on_torso(data, p_plan, R_ref, i, s)
+                e = p_ref - p
                 kp, kd, wh = (g.hand_kp, g.hand_kd, g.w_hand) if stiff else (g.free_hand_kp, g.free_hand_kd, g.w_free_hand)
+                # (a free hand in the torso frame keeps the plan's world velocity and acceleration as
+                # references: with its velocity and acceleration relative to the torso instead, 6 of 12
+                # push plans executed against 9: docs/execution.md, session 11)
                 b = dlerp(R_.site_a[limb])[:3] + kp * e + kd * (dlerp(R_.site_v[limb])[:3] - vel[:3]) - jdv[:3]
                 Jh = J[:3]
-                if g.hand_detour_arm_only and (self._arm_only[limb][i] or self._arm_only[limb][i + 1]):
+                if body_frame or (g.hand_detour_arm_only and (self._arm_only[limb][i] or self._arm_only[limb][i + 1])):
                     # a detour is the arm's own correction: the hand task may not move the body for it
                     Jh = np.zeros_like(Jh)
                     Jh[:, self._arm_cols[limb]] = J[:3, self._arm_cols[limb]]
@@ -823,7 +853,11 @@ class WholeBodyController:
                     w_ori = g.w_hand_ori_contact + wb * (w_ori - g.w_hand_ori_contact)
                 if wb > 0.0 and g.hand_release_posture > 0:
                     w_ori *= 1.0 - wb
-                task(J[3:], bo, w_ori)
+                Jo = J[3:]
+                if body_frame:
+                    Jo = np.zeros_like(Jo)
+                    Jo[:, self._arm_cols[limb]] = J[3:, self._arm_cols[limb]]
+                task(Jo, bo, w_ori)
 
         # --- CoM
         mujoco.mj_jacSubtreeCom(m, data, self._jp, self.pelvis)
@@ -832,13 +866,17 @@ class WholeBodyController:
         com_ref = lerp(R_.com)
         feet = [lf for lf in FEET if lf in corner_J]
         box = self._support_box(data, feet) if g.com_margin > 0 else None
+        shift = np.zeros(2)
         if box is not None:  # keep the CoM reference a margin inside the support (marginal plans tip over)
             lo, hi, Hh = box
             loc = Hh @ com_ref[:2]
-            clamped = np.clip(loc, lo, hi)
-            if np.any(clamped != loc):
-                com_ref = com_ref.copy()
-                com_ref[:2] = Hh.T @ clamped
+            shift = Hh.T @ (np.clip(loc, lo, hi) - loc)
+        if g.com_clamp_time > 0:  # the shift follows the support's changes smoothly (first order)
+            self._com_shift += min(m.opt.timestep / g.com_clamp_time, 1.0) * (shift - self._com_shift)
+            shift = self._com_shift
+        if np.any(shift != 0.0):
+            com_ref = com_ref.copy()
+            com_ref[:2] += shift
         if after_end and g.hold_recentre_time > 0:  # hold: move the CoM over the middle of the soles
             if feet:
                 mid = np.mean([data.xpos[self.foot_body[lf]] + data.xmat[self.foot_body[lf]].reshape(3, 3)
@@ -859,8 +897,10 @@ class WholeBodyController:
         pp = data.xpos[self.pelvis]
         b = dlerp(R_.base_a) + g.base_kp * (lerp(R_.base_p) - pp) + g.base_kd * (dlerp(R_.base_v) - Jp @ v)
         task(Jp, b, g.w_base_pos)
-        # --- torso orientation, while a hand detours: its arm-only hand task leaves the waist free
-        if g.hand_detour_arm_only and any(self._arm_only[l][i] or self._arm_only[l][i + 1] for l in HANDS):
+        # --- torso orientation, while a hand task acts on its arm only (a detour, a grasp offset, a free
+        # hand in the torso frame): those tasks leave the waist free
+        arm_only = g.hand_detour_arm_only and any(self._arm_only[l][i] or self._arm_only[l][i + 1] for l in HANDS)
+        if arm_only or self._body_frame_hands:
             mujoco.mj_jacBody(m, data, self._jp, self._jr, self.torso)
             Jt = self._jr[:, dofs]
             Rt = data.xmat[self.torso].reshape(3, 3)
@@ -875,7 +915,8 @@ class WholeBodyController:
             for limb in HANDS:
                 wb = released_w[limb]
                 if wb > 0.0:
-                    wp[self._arm_cols[limb] - 6] = g.w_posture + wb * (g.hand_release_posture - g.w_posture)
+                    cols = self._arm_cols[limb] - 6
+                    wp[cols] = wp[cols] + wb * (g.hand_release_posture - wp[cols])
         task(np.eye(NV)[6:], b, wp)
 
         A = np.vstack(rows_A)
