@@ -230,7 +230,8 @@ def make_parser() -> argparse.ArgumentParser:
     demo.add_argument("--task", default="push_trolley", help="task planned in step 2 (ros_ws/config/tasks/; "
                       "s1_basket is the paper's S1, not yet reliable through the graph: README, Status)")
     demo.add_argument("--no-plan", action="store_true", help="only step 1 (graph, bag, PNGs)")
-    demo.add_argument("--execute", action="store_true", help="execute the plan under physics afterwards")
+    demo.add_argument("--execute", action=argparse.BooleanOptionalAction, default=True,
+                      help="execute the plan under physics afterwards (default; --no-execute: plan only)")
     demo.add_argument("--no-progress", action="store_true", help="log lines instead of a progress bar")
     demo.set_defaults(func=cmd_demo)
     return parser

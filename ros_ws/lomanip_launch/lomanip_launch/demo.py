@@ -4,8 +4,8 @@
    an RGB and a depth PNG decoded from the bag (not from the simulator), so they also show that the
    bag holds usable camera data.
 2. `lomanip plan push_trolley --record`: a prompt list planned end to end (perception ->
-   retargeting -> TO) through /lomanip/plan, its outputs and bag saved under runs/<timestamp>/.
-   With ``--execute`` the trajectory is then run under physics.
+   retargeting -> TO) through /lomanip/plan, then run under physics (``--no-execute``: plan
+   only), its outputs and bag saved under runs/<timestamp>/.
 """
 from __future__ import annotations
 

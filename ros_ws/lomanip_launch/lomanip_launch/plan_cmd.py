@@ -66,7 +66,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
     def plan(stop_requested) -> int:
         from lomanip_launch.plan_client import PlanClientError, run_plan
-        from lomanip_launch.plan_outputs import error_name, save_plan
+        from lomanip_launch.plan_outputs import error_name, executed, save_plan
 
         try:
             outcome = run_plan(task, args.timeout, execute=args.execute, progress_bar=not args.no_progress,
@@ -87,6 +87,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
         n = len(outcome.result.trajectory.joint_trajectory.points)
         print(f"[lomanip] plan succeeded in {outcome.seconds:.1f} s: {n} trajectory points, "
               f"{stats.iterations} TO iterations, max penetration {1000 * stats.max_penetration:.1f} mm", flush=True)
+        if executed(outcome.result):
+            ex = outcome.result.execution
+            print(f"[lomanip] executed under physics: task success {ex.task_success}, fell {ex.fell}, pelvis max "
+                  f"{100 * ex.max_base_position_error:.1f} cm, real-time factor {ex.real_time_factor:.2f} "
+                  f"({ex.task_success_detail})", flush=True)
         return 0
 
     return run_graph(graph, None, on_ready=plan)
