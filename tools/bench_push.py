@@ -13,6 +13,7 @@ distance, max/RMS pelvis error; writes runs/bench_push/summary.json (summary_rep
     .venv/bin/python tools/bench_push.py --cases all     # 8 layouts
     .venv/bin/python tools/bench_push.py --cases base --set double_support_com_margin=null
     .venv/bin/python tools/bench_push.py --replay        # execute the saved plans again, no TO
+    .venv/bin/python tools/bench_push.py --replay --cases base --video   # + MP4, frames, strip
 
 Each case saves its plan (plan.npz) and its TO problem (problem.pkl, for the contact schedule) so
 that ``--replay`` measures a controller change on the same plans in seconds instead of minutes.
@@ -38,6 +39,7 @@ TASK = ROOT / "ros_ws/config/tasks/push_trolley.yaml"
 #: trolley chassis centre (m) per case; "base" is the demo's own layout
 #: whole-body controller gains of the executions (``--wbc NAME=VALUE`` overrides fields)
 WBC_GAINS = None
+VIDEO = False  # --video: each execution's MP4 (GIF without an encoder), frames and a strip
 CASES = {"base": None, "near": [0.80, 0.0], "far_left": [0.90, 0.05], "right": [0.85, -0.05],
          # a second set of layouts, to check a change against plans it was not tuned on (--cases all)
          "far": [0.90, 0.0], "left": [0.85, 0.05], "near_right": [0.80, -0.05], "far_right": [0.90, -0.05]}
@@ -83,7 +85,7 @@ def execute(row: dict, res, problem, scenario: str, overrides: dict, out_dir: Pa
     traj = from_to_result(res, problem.phases, scenario=scenario)
     ex = Execution(Simulation(load_scenario(scenario, overrides)), traj, gains=WBC_GAINS)
     m = ex.run()
-    save_run(out_dir, ex, out_dir.name, video=False)
+    save_run(out_dir, ex, out_dir.name, video=VIDEO)
     row.update(m.as_dict())
     return row
 
@@ -129,6 +131,7 @@ def main() -> int:
     ap.add_argument("--out", default="runs/bench_push")
     ap.add_argument("--wbc", action="append", default=[], metavar="GAIN=YAML",
                     help="override a WbcGains field of the controller, e.g. w_contact=1e4 (repeatable)")
+    ap.add_argument("--video", action="store_true", help="save a video, frames and a strip of each execution")
     ap.add_argument("--replay", action="store_true", help="execute the plans saved under --out again (no TO)")
     args = ap.parse_args()
     extra = {}
@@ -138,7 +141,8 @@ def main() -> int:
             print(f"bench_push: --set expects OPTION=VALUE, got {item!r}", file=sys.stderr)
             return 2
         extra[key] = _value(val)
-    global WBC_GAINS
+    global WBC_GAINS, VIDEO
+    VIDEO = args.video
     from dataclasses import fields, replace
 
     from lomanip_sim.wbc import WbcGains
