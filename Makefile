@@ -7,14 +7,14 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export MUJOCO_GL ?= egl
 export PYTHONUNBUFFERED := 1
 
-.PHONY: setup demo test test-all bench bench-graph bench-perception bench-plan bench-to bench-exec clean help
+.PHONY: setup demo test test-all bench bench-graph bench-perception bench-plan bench-to bench-exec bench-push clean help
 
 help:
 	@echo "make setup   - idempotent set-up: apt packages (as root), .venv, interfaces, lomanip packages"
 	@echo "make demo    - run the main job (see README)"
 	@echo "make test    - run the test suite (unit + graph tests; heavy cases are in the benchmarks)"
 	@echo "make bench   - run every benchmark below and print their figures (long)"
-	@echo "make bench-graph | bench-perception | bench-plan | bench-to | bench-exec - one benchmark (see README)"
+	@echo "make bench-graph | bench-perception | bench-plan | bench-to | bench-exec | bench-push - one benchmark (see README)"
 
 setup:
 	@tools/setup.sh
@@ -28,7 +28,7 @@ test: setup
 test-all: setup
 	$(PY) -m pytest -q -m "slow or not slow" tests
 
-bench: bench-graph bench-perception bench-plan bench-to bench-exec
+bench: bench-graph bench-perception bench-plan bench-to bench-exec bench-push
 
 bench-graph: setup
 	$(PY) tools/bench_graph.py
@@ -44,6 +44,9 @@ bench-to: setup
 
 bench-exec: setup
 	$(PY) tools/bench_exec.py
+
+bench-push: setup
+	$(PY) tools/bench_push.py --cases all
 
 clean:
 	rm -rf build runs .pytest_cache
