@@ -36,24 +36,30 @@ for _p in ("src/lomanip_to", "src/lomanip_sim", "src/lomanip_planner", "src/loma
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 TASK = ROOT / "ros_ws/config/tasks/push_trolley.yaml"
-#: trolley chassis centre (m) per case; "base" is the demo's own layout
 #: whole-body controller gains of the executions (``--wbc NAME=VALUE`` overrides fields)
 WBC_GAINS = None
 VIDEO = False  # --video: each execution's MP4 (GIF without an encoder), frames and a strip
+#: trolley chassis centre (m) per case; "base" is the demo's own layout
 CASES = {"base": None, "near": [0.80, 0.0], "far_left": [0.90, 0.05], "right": [0.85, -0.05],
          # a second set of layouts, to check a change against plans it was not tuned on (--cases all)
          "far": [0.90, 0.0], "left": [0.85, 0.05], "near_right": [0.80, -0.05], "far_right": [0.90, -0.05]}
 DEFAULT_CASES = ["base", "near", "far_left", "right"]
 
 
-def run_case(name: str, position, extra_options: dict, out_root: Path) -> dict:
-    from lomanip_planner import offline
-    from lomanip_to import fixtures
-
+def task_and_overrides(position) -> tuple[dict, dict]:
+    """The demo's task file and its scenario overrides with the trolley at ``position`` (None: as is)."""
     task = yaml.safe_load(TASK.read_text())
     overrides = dict(task.get("scenario_overrides") or {})
     if position is not None:
         overrides["trolley_position"] = position
+    return task, overrides
+
+
+def run_case(name: str, position, extra_options: dict, out_root: Path) -> dict:
+    from lomanip_planner import offline
+    from lomanip_to import fixtures
+
+    task, overrides = task_and_overrides(position)
     solver_yaml = yaml.safe_load(Path(fixtures.CONFIG_DIR, "solver.yaml").read_text())
     options = fixtures.load_options(solver_yaml.get("options"))
     options = fixtures.load_options(task.get("options"), options)
@@ -94,10 +100,7 @@ def replay_case(name: str, position, out_root: Path) -> dict:
     """Execute the plan a previous run saved for ``name`` (no TO)."""
     from lomanip_to.result import TOResult
 
-    task = yaml.safe_load(TASK.read_text())
-    overrides = dict(task.get("scenario_overrides") or {})
-    if position is not None:
-        overrides["trolley_position"] = position
+    task, overrides = task_and_overrides(position)
     case_dir = out_root / name
     if not (case_dir / "plan.npz").is_file() or not (case_dir / "problem.pkl").is_file():
         raise FileNotFoundError(f"{case_dir} holds no saved plan (plan.npz + problem.pkl): run without --replay first")
