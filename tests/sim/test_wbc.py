@@ -376,3 +376,26 @@ def test_push_admittance_sets_the_hand_depth_from_the_measured_force():
     wbc2._on_actual_object(sim2.data, "box", np.zeros(3), i, s)
     assert np.all(wbc2._push_admittance(sim2.data, "left_hand", c, t, i, s) == 0.0)
     assert "left_hand" not in wbc2._push_force
+
+
+def test_swing_foot_target_moves_with_the_capture_point():
+    """``step_adjust_gain``: a body moving sideways off its plan in a single stance moves the swing
+    foot's target the same way (faded in over the swing, bounded by ``step_adjust_max``)."""
+    sim, tr = simulation("case_one_step")
+    wbc = WholeBodyController(sim.world, tr)
+    sim.set_controller(wbc)
+    mid = tr.phase_at(0.5 * tr.duration)
+    assert len([f for f in mid.contacts if f.endswith("foot")]) == 1
+    t_mid = 0.5 * (mid.start + mid.end)
+    sim.run_for(t_mid)
+    d = sim.data
+    i, s = tr.index_at(wbc.trajectory_time(d))
+    phase = tr.phase_at(wbc.trajectory_time(d))
+    base = wbc._step_adjustment(d, phase, wbc.trajectory_time(d), i, s)
+    d.qvel[wbc.bdof + 1] += 0.4  # the whole robot 0.4 m/s to the left of its plan
+    mujoco.mj_forward(sim.model, d)
+    moved = wbc._step_adjustment(d, phase, wbc.trajectory_time(d), i, s)
+    assert moved[1] - base[1] > 0.01 and abs(moved[2]) == 0.0
+    assert np.linalg.norm(moved) <= wbc.g.step_adjust_max + 1e-12
+    wbc.g.step_adjust_gain = 0.0
+    assert np.allclose(wbc._step_adjustment(d, phase, wbc.trajectory_time(d), i, s), 0.0)
