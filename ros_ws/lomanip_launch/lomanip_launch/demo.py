@@ -102,7 +102,7 @@ def run_plan_demo(args: argparse.Namespace) -> int:
     if code == EXIT_PLAN_FAILED:
         # The pipeline ran and answered with an error code (e.g. TO_NOT_CONVERGED): that is the
         # demo's honest result, printed above and in summary.yaml, not a broken demo.
-        print("[lomanip] demo: the graph ran the whole pipeline, but the plan FAILED with the error above "
+        print("[lomanip] demo: the graph ran the whole pipeline, but the plan or its execution FAILED with the error above "
               "(see summary.yaml in the run folder); `lomanip plan` exits non-zero in this case", flush=True)
         return 0
     return code
