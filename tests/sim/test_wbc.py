@@ -389,13 +389,18 @@ def test_swing_foot_target_moves_with_the_capture_point():
     t_mid = 0.5 * (mid.start + mid.end)
     sim.run_for(t_mid)
     d = sim.data
-    i, s = tr.index_at(wbc.trajectory_time(d))
-    phase = tr.phase_at(wbc.trajectory_time(d))
-    base = wbc._step_adjustment(d, phase, wbc.trajectory_time(d), i, s)
-    d.qvel[wbc.bdof + 1] += 0.4  # the whole robot 0.4 m/s to the left of its plan
-    mujoco.mj_forward(sim.model, d)
-    moved = wbc._step_adjustment(d, phase, wbc.trajectory_time(d), i, s)
+    t = wbc.trajectory_time(d)
+    i, s = tr.index_at(t)
+    phase = tr.phase_at(t)
+
+    def adjustment(lateral_push: float) -> np.ndarray:
+        com = d.subtree_com[wbc.pelvis].copy()
+        mujoco.mj_jacSubtreeCom(sim.model, d, wbc._jp, wbc.pelvis)
+        com_v = wbc._jp @ d.qvel + np.array([0.0, lateral_push, 0.0])  # the whole robot moving sideways
+        return wbc._step_adjustment(d, com, com_v, phase, t, i, s)
+
+    base, moved = adjustment(0.0), adjustment(0.4)
     assert moved[1] - base[1] > 0.01 and abs(moved[2]) == 0.0
     assert np.linalg.norm(moved) <= wbc.g.step_adjust_max + 1e-12
     wbc.g.step_adjust_gain = 0.0
-    assert np.allclose(wbc._step_adjustment(d, phase, wbc.trajectory_time(d), i, s), 0.0)
+    assert np.allclose(adjustment(0.4), 0.0)

@@ -39,8 +39,8 @@ import mujoco
 import numpy as np
 
 from . import frames
-from .robot_model import (FOOT_BODIES, FOOT_CONTACT_POINTS, FOOT_SITES, G1_JOINT_NAMES, HAND_COLLISION_HALF_SIZE,
-                          HAND_SITES, PELVIS_BODY, TORSO_BODY)
+from .robot_model import (FOOT_BODIES, FOOT_CONTACT_POINTS, FOOT_SITES, FOOT_SOLE_OFFSET, G1_JOINT_NAMES,
+                          HAND_COLLISION_HALF_SIZE, HAND_SITES, PELVIS_BODY, TORSO_BODY)
 from .contact_forces import LimbForceMeter
 from .hand_approach import approach_lift, smoothstep
 from .hand_detour import Detour, HandBoxProbe, detour, movable_bodies, static_obstacle_geoms
@@ -698,19 +698,17 @@ class WholeBodyController:
         lo, hi = loc.min(axis=0) + self.g.com_margin, loc.max(axis=0) - self.g.com_margin
         return lo, np.maximum(hi, lo), H
 
-    def _step_adjustment(self, data: mujoco.MjData, phase, t: float, i: int, s: float) -> np.ndarray:
+    def _step_adjustment(self, data: mujoco.MjData, com: np.ndarray, com_v: np.ndarray, phase, t: float, i: int,
+                         s: float) -> np.ndarray:
         """(3,) horizontal shift of a swing foot's target: ``step_adjust_gain`` times the capture
-        point's error (measured CoM + velocity / omega against the plan's, the CoM clamp's shift
-        included), faded in over the swing and bounded by ``step_adjust_max``."""
+        point's error (measured CoM ``com`` + velocity ``com_v`` / omega against the plan's, the CoM
+        clamp's shift included), faded in over the swing and bounded by ``step_adjust_max``."""
         g, R_ = self.g, self.refs
-        m = self.model
-        mujoco.mj_jacSubtreeCom(m, data, self._jp, self.pelvis)
-        com = data.subtree_com[self.pelvis]
-        v = self._jp[:, self.dofs] @ data.qvel[self.dofs]
         c_ref = R_.com[i] + s * (R_.com[i + 1] - R_.com[i])
         v_ref = R_.com_v[i] + s * (R_.com_v[i + 1] - R_.com_v[i])
-        omega = np.sqrt(-m.opt.gravity[2] / max(com[2] - float(data.site_xpos[self.site_id["left_foot"]][2]) + 0.035, 0.3))
-        err = (com[:2] - c_ref[:2] - self._com_shift) + (v[:2] - v_ref[:2]) / omega
+        sole_z = min(float(data.site_xpos[self.site_id[f]][2]) for f in FEET) - FOOT_SOLE_OFFSET
+        omega = np.sqrt(-self.model.opt.gravity[2] / max(com[2] - sole_z, 0.3))
+        err = (com[:2] - c_ref[:2] - self._com_shift) + (com_v[:2] - v_ref[:2]) / omega
         u = np.clip((t - phase.start) / max(phase.end - phase.start, 1e-3), 0.0, 1.0)
         shift = g.step_adjust_gain * float(smoothstep(u)) * err
         n = np.linalg.norm(shift)
@@ -802,6 +800,10 @@ class WholeBodyController:
             rows_w.append(np.full(len(b), w) if np.isscalar(w) else w)
 
         # --- sites: feet (contact or swing) and hands
+        mujoco.mj_jacSubtreeCom(m, data, self._jp, self.pelvis)  # CoM task, step adjustment
+        Jc = self._jp[:, dofs].copy()
+        com = data.subtree_com[self.pelvis]
+
         site_J = {}
         corner_J = {}
         for limb, sid in self.site_id.items():
@@ -838,7 +840,7 @@ class WholeBodyController:
                         v_ref[:3] = w * v_ref[:3] + wd * (p_plan - start[1])
                         a_ref = w * a_ref
                     if g.step_adjust_gain > 0 and phase is not None:
-                        p_ref = p_ref + self._step_adjustment(data, phase, t, i, s)
+                        p_ref = p_ref + self._step_adjustment(data, com, Jc @ v, phase, t, i, s)
                     e = np.concatenate([p_ref - p, _rot_error(R_.site_R[limb][i if s < 0.5 else i + 1], Rm)])
                     b = a_ref + g.foot_kp * e + g.foot_kd * (v_ref - vel) - jdv
                     task(J, b, g.w_swing)
@@ -889,10 +891,7 @@ class WholeBodyController:
                     Jo[:, self._arm_cols[limb]] = J[3:, self._arm_cols[limb]]
                 task(Jo, bo, w_ori)
 
-        # --- CoM
-        mujoco.mj_jacSubtreeCom(m, data, self._jp, self.pelvis)
-        Jc = self._jp[:, dofs].copy()
-        com = data.subtree_com[self.pelvis]
+        # --- CoM (Jc, com from the top)
         com_ref = lerp(R_.com)
         feet = [lf for lf in FEET if lf in corner_J]
         box = self._support_box(data, feet) if g.com_margin > 0 else None
