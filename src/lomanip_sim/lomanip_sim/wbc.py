@@ -698,6 +698,12 @@ class WholeBodyController:
         lo, hi = loc.min(axis=0) + self.g.com_margin, loc.max(axis=0) - self.g.com_margin
         return lo, np.maximum(hi, lo), H
 
+    def _on_arm(self, J: np.ndarray, limb: str) -> np.ndarray:
+        """``J`` with only the columns of hand ``limb``'s own arm (a task its arm alone carries out)."""
+        out = np.zeros_like(J)
+        out[:, self._arm_cols[limb]] = J[:, self._arm_cols[limb]]
+        return out
+
     def _step_adjustment(self, data: mujoco.MjData, com: np.ndarray, com_v: np.ndarray, phase, t: float, i: int,
                          s: float) -> np.ndarray:
         """(3,) horizontal shift of a swing foot's target: ``step_adjust_gain`` times the capture
@@ -784,7 +790,7 @@ class WholeBodyController:
         planned = phase.contacts if phase is not None else {f: None for f in FEET}
         contacts = self._release_hands(data, planned, t, i, s) if g.hand_release else planned
         released_w = {limb: self._body_weight(limb, t) for limb in HANDS}  # 0..1 per hand, this step
-        self._body_frame_hands = False
+        body_frame_hands = False  # some free hand tracked in the torso frame this step
         dofs = self.dofs
         v = data.qvel[dofs]
         qj = data.qpos[self.bq + 7 : self.bq + 7 + NJ]
@@ -858,7 +864,7 @@ class WholeBodyController:
                 stiff = self._hand_stiff[limb][i if s < 0.5 else i + 1]
                 body_frame = g.free_hand_body_frame and not stiff and wb == 0.0
                 if body_frame:  # a free hand: the plan's hand carried with the actual torso, moved by its arm
-                    self._body_frame_hands = True
+                    body_frame_hands = True
                     p_ref, R_ref = self._on_torso(data, p_plan, R_ref, i, s)
                 e = p_ref - p
                 kp, kd, wh = (g.hand_kp, g.hand_kd, g.w_hand) if stiff else (g.free_hand_kp, g.free_hand_kd, g.w_free_hand)
@@ -868,9 +874,7 @@ class WholeBodyController:
                 b = dlerp(R_.site_a[limb])[:3] + kp * e + kd * (dlerp(R_.site_v[limb])[:3] - vel[:3]) - jdv[:3]
                 Jh = J[:3]
                 if body_frame or (g.hand_detour_arm_only and (self._arm_only[limb][i] or self._arm_only[limb][i + 1])):
-                    # a detour is the arm's own correction: the hand task may not move the body for it
-                    Jh = np.zeros_like(Jh)
-                    Jh[:, self._arm_cols[limb]] = J[:3, self._arm_cols[limb]]
+                    Jh = self._on_arm(Jh, limb)  # the arm's own correction: the hand task may not move the body
                 if wb > 0.0 and g.hand_release_posture > 0:
                     wh *= 1.0 - wb
                 task(Jh, b, wh)
@@ -885,11 +889,7 @@ class WholeBodyController:
                     w_ori = g.w_hand_ori_contact + wb * (w_ori - g.w_hand_ori_contact)
                 if wb > 0.0 and g.hand_release_posture > 0:
                     w_ori *= 1.0 - wb
-                Jo = J[3:]
-                if body_frame:
-                    Jo = np.zeros_like(Jo)
-                    Jo[:, self._arm_cols[limb]] = J[3:, self._arm_cols[limb]]
-                task(Jo, bo, w_ori)
+                task(self._on_arm(J[3:], limb) if body_frame else J[3:], bo, w_ori)
 
         # --- CoM (Jc, com from the top)
         com_ref = lerp(R_.com)
@@ -929,7 +929,7 @@ class WholeBodyController:
         # --- torso orientation, while a hand task acts on its arm only (a detour, a grasp offset, a free
         # hand in the torso frame): those tasks leave the waist free
         arm_only = g.hand_detour_arm_only and any(self._arm_only[l][i] or self._arm_only[l][i + 1] for l in HANDS)
-        if arm_only or self._body_frame_hands:
+        if arm_only or body_frame_hands:
             mujoco.mj_jacBody(m, data, self._jp, self._jr, self.torso)
             Jt = self._jr[:, dofs]
             Rt = data.xmat[self.torso].reshape(3, 3)
