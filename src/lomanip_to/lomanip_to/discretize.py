@@ -316,6 +316,25 @@ class ProblemData:
     def contact(self, k: int, limb: str):
         return self.prob.phases[self.grid.phase[k]].contacts.get(limb)
 
+    def _touched(self, k: int, oid: str) -> bool:
+        """Whether a limb or another object loads ``oid`` at knot ``k``."""
+        ph = self.prob.phases[self.grid.phase[k]]
+        if any(c.object_id == oid for c in ph.contacts.values()):
+            return True
+        return any(mo.support == oid or mo.attached_to == oid for o, mo in ph.objects.items() if o != oid)
+
+    def _left_alone(self, k: int, oid: str) -> bool:
+        """An object resting on its support that nothing has touched since the knot before is at
+        rest at ``k`` (its velocity over [t_k-1, t_k] is zero).
+
+        Why: the support's friction is a linearised cone with no dissipation row, so on its own it
+        could drive an object. S1's placed box slid 0.35 m along the floor after the hands let go
+        (no force on it but the floor's). Named simplification: an object let go while sliding
+        stops within one knot."""
+        if k == 0 or self.obj_mode(k, oid) != "supported" or self.obj_mode(k - 1, oid) != "supported":
+            return False
+        return not (self._touched(k - 1, oid) or self._touched(k, oid))
+
     # ------------------------------------------------------------------ warm start / references
     def _warm_start_x(self):
         prob, K = self.prob, self.grid.K
@@ -570,7 +589,7 @@ class ProblemData:
                 # the hands alone accelerate it from there. Without this the floor's force at the
                 # last supported knot launched S1's box 14 cm up while the hands pushed it down.
                 lift_off = mode == "free" and prev in ("supported", "rolling")
-                if mode == "fixed" or prev == "fixed" or k == 0 or lift_off:
+                if mode == "fixed" or prev == "fixed" or k == 0 or lift_off or self._left_alone(k, oid):
                     setb(f"o{j}_vel", k, 0, 0)
                 else:
                     setb(f"o{j}_vel", k, -3, 3)

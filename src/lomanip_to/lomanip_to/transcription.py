@@ -24,7 +24,8 @@ third law).  Objects: single rigid bodies (linear + angular momentum), supported
 contacts, nonholonomic rear axle, rigid attachment.
 Joint torques: the 26 hip-to-ankle and shoulder-to-wrist joints and the 3 waist joints,
 quasi-static (gravity of the links beyond the joint plus the contact wrenches they carry; the distal
-links' inertia is left out and covered by a margin), within a fraction of the G1's limits.
+links' inertia is left out and covered by a margin), within a fraction of the G1's limits; the waist
+rows also carry the torso's and arms' inertia (rate of their angular momentum, knot k to k+1).
 Collisions: robot spheres vs object boxes: hard constraint on the exact signed distance, quadratic
 penalty on penetration, and a homotopy constraint + penalty (with slack) on a super-ellipsoid
 surrogate whose exponent is raised between solves (2 = ellipsoid -> box); self-collision sphere
@@ -54,6 +55,9 @@ HAND_TORSION = 0.01
 #: scale of the hand moments in the force regulariser: a moment is used only where the task needs
 #: it (with 10, the push's hands carried moments that the wrists could not hold: torque check failed)
 HAND_MOMENT_COST = 100.0
+#: joint groups (model.torque_row_joints) whose torque rows carry the inertia of the links beyond the
+#: joint; the others are quasi-static
+INERTIAL_TORQUE_GROUPS = ("waist",)
 #: scale of the wheels' dissipation rows (force in robot weights x velocity in m/s is ~1e-3)
 ROLLING_DISSIPATION_SCALE = 100.0
 
@@ -200,7 +204,7 @@ class Window:
         com_x, h_x = m.com_and_momentum(tree)
         limbs = m.limb_frames(tree)
         spheres = m.sphere_centers(tree)
-        tree_b = m.symbolic_tree(wb["x"])
+        tree_b = m.symbolic_tree(wb["x"], wb["xd"])
         limbs_b = m.limb_frames(tree_b)
 
         # ---- object poses (symbolic) at a and b
@@ -231,6 +235,9 @@ class Window:
         wrenches = {f: ([(pt, mg * u) for pt, u in forces[4 * i:4 * i + 4]], 0) for i, f in enumerate(FEET)}
         wrenches.update({h: ([(limbs[h][0], mg * wa[f"u_{h}"])], mg * wa[f"tau_{h}"]) for h in HANDS})
         taus = m.quasi_static_limb_torques(tree, wrenches)
+        # the waist also accelerates the torso, arms and head (model.inertial_torques)
+        for group, inertial in m.inertial_torques(tree, tree_b, dt, INERTIAL_TORQUE_GROUPS).items():
+            taus[group] = [ts + ti for ts, ti in zip(taus[group], inertial)]
         add("joint torques (quasi-static)",
             ca.vertcat(*[taus[group][i] / m.tau_max[j - 2] for group, (js, _) in m.torque_row_joints.items()
                          for i, j in enumerate(js)]))
