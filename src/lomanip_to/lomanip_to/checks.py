@@ -252,10 +252,15 @@ def run_checks(model: G1Model, data, res) -> dict:
     out["penetration"] = {"value": pen, "where": f"t={res.stats.max_penetration_time:.2f}", "ok": pen <= TOL["penetration"]}
     v, w = joint_limit_violation(model, res)
     out["joint_limits"] = {"value": v, "where": f"{w[0]} t={w[1]:.2f}", "ok": v <= TOL["joint_limits"]}
-    v, w, base, rnea = torque_ratio(model, res)
+    v, w, base, rnea = (float(a) if i != 1 else a for i, a in enumerate(torque_ratio(model, res)))
     out["torque_limits"] = {"value": v, "where": f"{w[0]} t={w[1]:.2f}", "ok": v <= TOL["torque_ratio"],
                             "rnea_ratio": rnea, "base_wrench_residual": base}
     dp, dyaw, oid, tg = placement_error(data, res)
     out["placement_goals"] = {"value": dp, "yaw_error": dyaw, "where": f"{oid} t={tg:.2f}" if oid else "",
                               "ok": dp <= TOL["placement"] and dyaw <= TOL["placement_yaw"]}
+    for c in out.values():  # plain Python numbers (the checks go into JSON and messages)
+        c["ok"] = bool(c["ok"])
+        for key, val in c.items():
+            if isinstance(val, np.floating):
+                c[key] = float(val)
     return out

@@ -25,8 +25,7 @@ contacts, nonholonomic rear axle, rigid attachment.
 Joint torques: the 26 hip-to-ankle and shoulder-to-wrist joints and the 3 waist joints,
 quasi-static (gravity of the links beyond the joint plus the contact wrenches they carry; the distal
 links' inertia is left out and covered by a margin), within a fraction of the G1's limits; the waist
-and arm rows also carry the inertia of the links beyond the joint (rate of their momentum, knot
-k to k+1).
+rows also carry the inertia of the torso and arms (rate of their momentum, knot k to k+1).
 Collisions: robot spheres vs object boxes: hard constraint on the exact signed distance, quadratic
 penalty on penetration, and a homotopy constraint + penalty (with slack) on a super-ellipsoid
 surrogate whose exponent is raised between solves (2 = ellipsoid -> box); self-collision sphere
@@ -57,9 +56,11 @@ HAND_TORSION = 0.01
 #: it (with 10, the push's hands carried moments that the wrists could not hold: torque check failed)
 HAND_MOMENT_COST = 100.0
 #: joint groups (model.torque_row_joints) whose torque rows carry the inertia of the links beyond the
-#: joint; the legs' stay quasi-static (their inertial part reached 0.08 of a limit on S1, against
-#: 0.5 for the waist and 0.2-0.4 for the arms, and the leg rows cost 10 % more per iteration)
-INERTIAL_TORQUE_GROUPS = ("waist", "left_hand", "right_hand")
+#: joint; the others stay quasi-static under TORQUE_MARGIN. The waist carries the torso and arms
+#: (0.5 of its limit in S1's lift). With the arms' rows dynamic too, S1's carry subtask reached its
+#: iteration caps in 4 of 4 solves (docs/to.md, session 12), and every row costs time per iteration
+#: (waist +8 %, all joints +25 %)
+INERTIAL_TORQUE_GROUPS = ("waist",)
 #: scale of the wheels' dissipation rows (force in robot weights x velocity in m/s is ~1e-3)
 ROLLING_DISSIPATION_SCALE = 100.0
 
