@@ -27,6 +27,7 @@ import numpy as np
 import rclpy
 from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -133,8 +134,14 @@ class PlannerNode(Node):
         once the robot stands still (or after ``settle_timeout`` s, with a warning)."""
         self._joints = self._pelvis = None
         self._pelvis_track.clear()
-        subs = [self.create_subscription(JointState, "/joint_states", self._on_joints, 10, callback_group=self._group),
-                self.create_subscription(TFMessage, "/tf", self._on_tf, 10, callback_group=self._group)]
+        # no QoS event handlers on these: rclpy does not guard an event handler whose subscription is
+        # destroyed while the executor waits on it, and that race crashed this node (InvalidHandle
+        # in executor.spin) in a graph test; the subscription handles themselves are guarded
+        quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
+        subs = [self.create_subscription(JointState, "/joint_states", self._on_joints, 10, callback_group=self._group,
+                                         event_callbacks=quiet),
+                self.create_subscription(TFMessage, "/tf", self._on_tf, 10, callback_group=self._group,
+                                         event_callbacks=quiet)]
         try:
             deadline = time.monotonic() + self.timeouts["state"]
             while self._scene is None or self._joints is None or self._pelvis is None:
