@@ -328,6 +328,10 @@ class ProblemData:
         return np.concatenate([np.full(len(js), DYNAMIC_TORQUE_MARGIN if g in INERTIAL_TORQUE_GROUPS else TORQUE_MARGIN)
                                for g, (js, _) in self.model.torque_row_joints.items()])
 
+    def rest_height(self, oid: str, support: str) -> float:
+        """World height of ``oid``'s origin when it rests on ``support``."""
+        return self._support_top(support) - self.prob.object(oid).bottom_z()
+
     def _touched(self, k: int, oid: str) -> bool:
         """Whether a limb or another object loads ``oid`` at knot ``k``."""
         ph = self.prob.phases[self.grid.phase[k]]
@@ -642,6 +646,7 @@ class ProblemData:
         # last window: integration rows off; momentum rows stay on against the (zero) dummy knot,
         # i.e. the final knot is in static equilibrium (the motion ends at rest)
         trans = ["kinematic integration", "CoM integration"]
+        torque_margins = self._torque_margins()
         for k in range(K):
             last = k == N
             for r in trans:
@@ -714,8 +719,7 @@ class ProblemData:
             self._support_rows(k, last, rows)
             rows("feet apart", k, FEET_MIN_LATERAL if k > 0 else -INF, INF)  # knot 0 is the measured start
             # |tau| <= margin tau_max: quasi-static rows leave out the distal links' inertia
-            margins = self._torque_margins()
-            rows("joint torques (quasi-static)", k, -margins, margins)
+            rows("joint torques (quasi-static)", k, -torque_margins, torque_margins)
 
         # ---------------- parameters
         kf_sub = {kf.subtask_index: kf for kf in prob.keyframes}
@@ -991,15 +995,12 @@ class ProblemData:
         mass, I = self._lumped(k, oid)
         col[P[f"o{j}_m"]] = mass
         col[P[f"o{j}_I"]] = I.ravel(order="F")
-        bz = o.bottom_z()
         col[P[f"o{j}_corners"]] = o.bottom_corners().ravel()
         col[P[f"o{j}_axle"]] = np.asarray(o.rear_axle, float)
         ph = self.prob.phases[self.grid.phase[k]]
         mo = ph.objects.get(oid)
         if mode in ("supported", "rolling"):
-            sup = mo.support
-            hs = self._support_top(sup)
-            col[P[f"o{j}_zrest"]] = hs - bz
+            col[P[f"o{j}_zrest"]] = self.rest_height(oid, mo.support)
         else:
             col[P[f"o{j}_zrest"]] = self.obj_nom[oid][k][2]
         if mode == "attached":

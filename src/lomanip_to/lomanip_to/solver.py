@@ -566,7 +566,7 @@ def _poses_at_end(win: Window, sd: ProblemData, Wm: np.ndarray, poses: dict) -> 
         pose = Wm[win.W[f"o{j}_pose"], k].copy()
         mo = sd.prob.phases[sd.grid.phase[k]].objects.get(oid)
         if sd.obj_mode(k, oid) in ("supported", "rolling") and mo is not None:
-            pose[2] = sd._support_top(mo.support) - sd.prob.object(oid).bottom_z()
+            pose[2] = sd.rest_height(oid, mo.support)
             pose[3:5] = 0.0
         out[oid] = pose
     return out
