@@ -29,6 +29,8 @@ def test_missing_file_lists_shipped_tasks(tmp_path):
      "finite"),
     ({"scenario": "s1_basket", "prompts": ["a"], "options": {"max_iterations": "many"}}, "must be int"),
     ({"scenario": "s1_basket", "prompts": ["a"], "options": {"warp_speed": True}}, "unknown option"),
+    ({"scenario": "s1_basket", "prompts": ["a"], "options": {"inertial_torque_groups": "waist"}}, "must be list"),
+    ({"scenario": "s1_basket", "prompts": ["a"], "options": {"inertial_torque_groups": [1]}}, "list of group names"),
     ({"scenario": "s1_basket", "prompts": ["a"], "colour": "red"}, "unknown field"),
 ])
 def test_bad_tasks_are_rejected_with_a_reason(data, match):
@@ -56,3 +58,14 @@ def test_shipped_tasks_stop_the_to_before_the_planner_gives_up(name):
     planner_timeout = params["lomanip_planner"]["ros__parameters"]["optimisation_timeout"]
     limit = load_task(name).options["time_limit"]
     assert hard_deadline(limit) < planner_timeout
+
+
+def test_task_options_reach_the_trajectory_options_message():
+    """Every option a task file may set is a TrajectoryOptions field of the same type (plan_client copies them)."""
+    from lomanip_msgs.msg import TrajectoryOptions
+    from lomanip_launch.task_file import _OPTION_FIELDS
+
+    msg = TrajectoryOptions()
+    assert list(msg.inertial_torque_groups) == ["waist"]  # the TO's default (lomanip_to.problem.Options)
+    for key, kind in _OPTION_FIELDS.items():
+        assert isinstance(getattr(msg, key), kind), key

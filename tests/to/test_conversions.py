@@ -77,3 +77,16 @@ def test_durations_round_trip_without_losing_a_second():
         d = s_to_duration(t)
         assert 0 <= d.nanosec < 1_000_000_000
         assert abs(duration_to_s(d) - t) < 1e-9
+
+
+def test_options_round_trip_the_inertial_torque_groups(model):
+    from lomanip_msgs.msg import TrajectoryOptions
+    from lomanip_to.problem import Options
+
+    assert conv.options_from_msg(TrajectoryOptions()).inertial_torque_groups == Options().inertial_torque_groups
+    prob = load_problem("case_one_step", model=model)
+    prob.options = prob.options.replaced(inertial_torque_groups=())
+    req = conv.request_from_problem(prob, model.joint_names)
+    assert conv.options_from_msg(req.options).inertial_torque_groups == ()
+    msg = TrajectoryOptions(inertial_torque_groups=["waist", "left_hand"])
+    assert conv.options_from_msg(msg).inertial_torque_groups == ("waist", "left_hand")

@@ -22,7 +22,7 @@ from lomanip_launch.environment import config_dir
 TASKS_DIR = config_dir() / "tasks"
 _OPTION_FIELDS = {"use_keyframe_base_cost": bool, "use_keyframe_foot_cost": bool, "use_keyframe_warm_start": bool,
                   "collision_hard_constraint": bool, "collision_penalty": bool, "collision_homotopy": bool,
-                  "max_iterations": int, "output_rate": float, "time_limit": float}
+                  "max_iterations": int, "output_rate": float, "time_limit": float, "inertial_torque_groups": list}
 
 
 class TaskFileError(ValueError):
@@ -89,6 +89,8 @@ def task_from_dict(data: dict, where: str = "task") -> Task:
             raise TaskFileError(f"{where}: unknown option {key!r}; options: {', '.join(_OPTION_FIELDS)}")
         if not isinstance(value, _OPTION_FIELDS[key]) and not (_OPTION_FIELDS[key] is float and isinstance(value, int)):
             raise TaskFileError(f"{where}: option {key} must be {_OPTION_FIELDS[key].__name__}")
+        if key == "inertial_torque_groups" and not all(isinstance(g, str) for g in value):
+            raise TaskFileError(f"{where}: option inertial_torque_groups must be a list of group names")
     return Task(scenario, [p.strip() for p in prompts], dict(overrides), goals, dict(options))
 
 

@@ -102,7 +102,7 @@ SWING_TILT = 0.05
 #: that the inertia the rows leave out still fits under the limit in the a-posteriori RNEA check
 TORQUE_MARGIN = 0.8
 #: the same for the rows that carry the inertia of the links beyond the joint
-#: (transcription.INERTIAL_TORQUE_GROUPS). Kept at 0.8: with 0.9 S1's subtask 0 (walk to the box,
+#: (Options.inertial_torque_groups). Kept at 0.8: with 0.9 S1's subtask 0 (walk to the box,
 #: squat) stopped at its iteration cap, where it had converged in six solves at 0.8 (docs/to.md,
 #: session 12); the margin then also covers the interpolation between knots
 DYNAMIC_TORQUE_MARGIN = 0.8
@@ -167,7 +167,8 @@ class ProblemData:
             self.prims = [(o.id, pi) for o in prob.objects for pi in range(len(o.primitives))]
             self.pairs = list(pairs)
         self.structure = Structure(len(self.moving), tuple(s for s, _ in self.pairs),
-                                   self_pairs(model) if opt.self_collision else ())
+                                   self_pairs(model) if opt.self_collision else (),
+                                   tuple(opt.inertial_torque_groups))
 
     # ------------------------------------------------------------------ object nominal poses
     def _object_timeline(self):
@@ -323,9 +324,8 @@ class ProblemData:
 
     def _torque_margins(self) -> np.ndarray:
         """Bound of each torque row as a fraction of the joint's limit, in the window's row order."""
-        from .transcription import INERTIAL_TORQUE_GROUPS
-
-        return np.concatenate([np.full(len(js), DYNAMIC_TORQUE_MARGIN if g in INERTIAL_TORQUE_GROUPS else TORQUE_MARGIN)
+        dynamic = self.structure.inertial_groups
+        return np.concatenate([np.full(len(js), DYNAMIC_TORQUE_MARGIN if g in dynamic else TORQUE_MARGIN)
                                for g, (js, _) in self.model.torque_row_joints.items()])
 
     def rest_height(self, oid: str, support: str) -> float:
@@ -719,7 +719,7 @@ class ProblemData:
             self._support_rows(k, last, rows)
             rows("feet apart", k, FEET_MIN_LATERAL if k > 0 else -INF, INF)  # knot 0 is the measured start
             # |tau| <= margin tau_max: quasi-static rows leave out the distal links' inertia
-            rows("joint torques (quasi-static)", k, -torque_margins, torque_margins)
+            rows("joint torques", k, -torque_margins, torque_margins)
 
         # ---------------- parameters
         kf_sub = {kf.subtask_index: kf for kf in prob.keyframes}

@@ -51,7 +51,7 @@ def load_options(d: dict | None, base: Options | None = None) -> Options:
     for k, v in (d or {}).items():
         if not hasattr(opt, k):
             raise ValueError(f"unknown TO option {k!r}")
-        if k == "collision_groups":
+        if k in ("collision_groups", "inertial_torque_groups"):
             v = tuple(v)
         if k == "weights":
             w = dict(opt.weights)

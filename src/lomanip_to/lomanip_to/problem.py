@@ -201,6 +201,9 @@ class PlacementGoal:
     weight: float = 1e3
 
 
+#: joint groups of the TO's torque rows (lomanip_to.model.G1Model.torque_row_joints)
+TORQUE_GROUPS = ("left_foot", "right_foot", "left_hand", "right_hand", "waist")
+
 #: Hessians the solver can hand ipopt (Options.guide_hessian / final_hessian, assembly.AssembledNLP.hessian)
 HESSIANS = ("exact", "cost")
 
@@ -278,6 +281,13 @@ class Options:
     #: lifting the heel; the foot rolled onto its toes and the robot fell backwards (docs/execution.md,
     #: session 10)
     min_knee_bend: float = 0.0
+    #: joint groups ("waist", "left_hand", "right_hand", "left_foot", "right_foot") whose torque rows
+    #: add the inertia of the links the joint carries to the quasi-static torque (the others stay
+    #: quasi-static). The waist, by default: S1's lift took its pitch to 1.27 of the limit with
+    #: quasi-static rows. Each dynamic group costs time per iteration (waist +8 %, all +25 %), and
+    #: with the arms dynamic S1's carry did not converge (docs/to.md, session 12). The physical
+    #: check counts the inertia of every joint whatever this says
+    inertial_torque_groups: tuple = ("waist",)
     weights: dict = field(default_factory=dict)
     #: extra ipopt options (expert use; e.g. {"mu_strategy": "monotone"})
     ipopt: dict = field(default_factory=dict)
@@ -337,6 +347,10 @@ def validate_problem(prob: Problem, model=None) -> None:
         if getattr(prob.options, name) not in HESSIANS:
             raise ProblemError(INVALID_REQUEST, f"options.{name} must be one of {', '.join(HESSIANS)}, "
                                                 f"not {getattr(prob.options, name)!r}", "options")
+    bad = [g for g in prob.options.inertial_torque_groups if g not in TORQUE_GROUPS]
+    if bad:
+        raise ProblemError(INVALID_REQUEST, f"options.inertial_torque_groups: unknown group(s) {', '.join(map(repr, bad))} "
+                                            f"(known: {', '.join(TORQUE_GROUPS)})", "options")
     ids = set()
     for i, o in enumerate(prob.objects):
         w = f"objects[{i}] ({o.id})"

@@ -55,12 +55,6 @@ HAND_TORSION = 0.01
 #: scale of the hand moments in the force regulariser: a moment is used only where the task needs
 #: it (with 10, the push's hands carried moments that the wrists could not hold: torque check failed)
 HAND_MOMENT_COST = 100.0
-#: joint groups (model.torque_row_joints) whose torque rows carry the inertia of the links beyond the
-#: joint; the others stay quasi-static under TORQUE_MARGIN. The waist carries the torso and arms
-#: (0.5 of its limit in S1's lift). With the arms' rows dynamic too, S1's carry subtask reached its
-#: iteration caps in 4 of 4 solves (docs/to.md, session 12), and every row costs time per iteration
-#: (waist +8 %, all joints +25 %)
-INERTIAL_TORQUE_GROUPS = ("waist",)
 #: scale of the wheels' dissipation rows (force in robot weights x velocity in m/s is ~1e-3)
 ROLLING_DISSIPATION_SCALE = 100.0
 
@@ -72,6 +66,9 @@ class Structure:
     n_obj: int
     obj_pairs: tuple  # sphere index per object-collision pair
     self_pairs: tuple  # (sphere i, sphere j)
+    #: torque-row groups (model.torque_row_joints) whose rows also carry the inertia of the links
+    #: beyond the joint (Options.inertial_torque_groups)
+    inertial_groups: tuple = ("waist",)
 
     def key(self) -> str:
         return hashlib.sha1(repr(self).encode()).hexdigest()[:12]
@@ -239,9 +236,9 @@ class Window:
         wrenches.update({h: ([(limbs[h][0], mg * wa[f"u_{h}"])], mg * wa[f"tau_{h}"]) for h in HANDS})
         taus = m.quasi_static_limb_torques(tree, wrenches)
         # the waist also accelerates the torso, arms and head (model.inertial_torques)
-        for group, inertial in m.inertial_torques(tree, tree_b, dt, INERTIAL_TORQUE_GROUPS).items():
+        for group, inertial in m.inertial_torques(tree, tree_b, dt, st.inertial_groups).items():
             taus[group] = [ts + ti for ts, ti in zip(taus[group], inertial)]
-        add("joint torques (quasi-static)",
+        add("joint torques",
             ca.vertcat(*[taus[group][i] / m.tau_max[j - 2] for group, (js, _) in m.torque_row_joints.items()
                          for i, j in enumerate(js)]))
         torque = sum(ca.cross(pt - wa["com"], u) for pt, u in forces) + sum(wa[f"tau_{h}"] for h in HANDS)
