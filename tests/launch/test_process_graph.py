@@ -56,3 +56,23 @@ def test_wait_ready_times_out_with_the_missing_names(tmp_path):
 def test_duplicate_names_are_refused(tmp_path):
     with pytest.raises(GraphError, match="duplicate"):
         ProcessGraph([NodeSpec("a", SLEEPER), NodeSpec("a", SLEEPER)], {}, tmp_path)
+
+
+def test_stale_shared_memory_is_removed_and_mapped_files_are_kept():
+    """A Fast DDS port file nobody maps is stale (its owner died) and goes; a mapped one stays."""
+    import mmap
+
+    from lomanip_launch.process_graph import remove_stale_shm
+
+    stale = f"/dev/shm/fastrtps_port_lomanip_test_stale_{os.getpid()}"
+    stale_sem = f"/dev/shm/sem.fastrtps_port_lomanip_test_stale_{os.getpid()}_mutex"
+    live = f"/dev/shm/fastrtps_port_lomanip_test_live_{os.getpid()}"
+    for path in (stale, stale_sem, live):
+        with open(path, "wb") as f:
+            f.write(b"\0" * 4096)
+    with open(live, "r+b") as f, mmap.mmap(f.fileno(), 4096) as _mapped:
+        removed = remove_stale_shm()
+        assert os.path.basename(stale) in removed and os.path.basename(stale_sem) in removed
+        assert not os.path.exists(stale) and not os.path.exists(stale_sem)
+        assert os.path.exists(live)
+    os.unlink(live)

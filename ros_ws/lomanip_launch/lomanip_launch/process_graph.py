@@ -40,9 +40,13 @@ class RunningNode:
         return "running" if code is None else f"exited({code})"
 
 
+#: /dev/shm names of Fast DDS: segments and their locks, ports, the ports' named semaphores
+_FASTDDS_SHM_PREFIXES = ("fastrtps_", "fast_datasharing", "sem.fastrtps_")
+
+
 def _shm_files() -> set[str]:
     try:
-        return {p for p in os.listdir("/dev/shm") if p.startswith(("fastrtps_", "fast_datasharing"))}
+        return {p for p in os.listdir("/dev/shm") if p.startswith(_FASTDDS_SHM_PREFIXES)}
     except FileNotFoundError:
         return set()
 
@@ -63,6 +67,28 @@ def _shm_in_use() -> set[str]:
         except (OSError, IndexError):
             continue
     return used
+
+
+def remove_stale_shm() -> list[str]:
+    """Remove the Fast DDS shared-memory files no live process maps or holds open; their names.
+
+    Why: a participant killed without its shutdown (SIGKILL, a crash, OOM) leaves its port file
+    (fastrtps_port<N>), and so does one whose port another process was still writing to when it
+    exited. The next participant that gets the same port number on that domain opens the old file
+    and receives nothing over shared memory: in one test run every graph test after the
+    orchestrator's kill tests failed on "no /lomanip/scene_objects received" (README, "Tests"). A
+    live participant always maps its own port and segment, so a file nobody maps is stale.
+    Files of other users cannot be removed here (/dev/shm is sticky) and are left alone.
+    """
+    stale = _shm_files() - _shm_in_use()
+    removed = []
+    for name in sorted(stale):
+        try:
+            os.unlink(os.path.join("/dev/shm", name))
+            removed.append(name)
+        except OSError:
+            pass
+    return removed
 
 
 class ProcessGraph:
@@ -86,6 +112,9 @@ class ProcessGraph:
 
     def start(self) -> None:
         self.log_dir.mkdir(parents=True, exist_ok=True)
+        removed = remove_stale_shm()
+        if removed:
+            self._say(f"removed {len(removed)} stale Fast DDS shared-memory file(s) left by earlier runs")
         self._shm_before = _shm_files()
         for spec in self.specs:
             log_path = self.log_dir / f"{spec.name}.log"
