@@ -36,5 +36,5 @@ def _no_stale_dds_shared_memory():
     """
     from lomanip_launch.process_graph import remove_stale_shm
 
-    remove_stale_shm()
+    remove_stale_shm(min_age=2.0)  # no participant of this run is starting now
     yield

@@ -67,12 +67,18 @@ def test_stale_shared_memory_is_removed_and_mapped_files_are_kept():
     stale = f"/dev/shm/fastrtps_port_lomanip_test_stale_{os.getpid()}"
     stale_sem = f"/dev/shm/sem.fastrtps_port_lomanip_test_stale_{os.getpid()}_mutex"
     live = f"/dev/shm/fastrtps_port_lomanip_test_live_{os.getpid()}"
-    for path in (stale, stale_sem, live):
+    fresh = f"/dev/shm/fastrtps_port_lomanip_test_fresh_{os.getpid()}"
+    for path in (stale, stale_sem, live, fresh):
         with open(path, "wb") as f:
             f.write(b"\0" * 4096)
+    old = time.time() - 60.0
+    for path in (stale, stale_sem, live):
+        os.utime(path, (old, old))
     with open(live, "r+b") as f, mmap.mmap(f.fileno(), 4096) as _mapped:
-        removed = remove_stale_shm()
+        removed = remove_stale_shm(min_age=10.0)
         assert os.path.basename(stale) in removed and os.path.basename(stale_sem) in removed
         assert not os.path.exists(stale) and not os.path.exists(stale_sem)
         assert os.path.exists(live)
+        assert os.path.exists(fresh)  # just created: perhaps a participant that has not mapped it yet
     os.unlink(live)
+    os.unlink(fresh)

@@ -69,7 +69,7 @@ def _shm_in_use() -> set[str]:
     return used
 
 
-def remove_stale_shm() -> list[str]:
+def remove_stale_shm(min_age: float = 10.0) -> list[str]:
     """Remove the Fast DDS shared-memory files no live process maps or holds open; their names.
 
     Why: a participant killed without its shutdown (SIGKILL, a crash, OOM) leaves its port file
@@ -77,12 +77,22 @@ def remove_stale_shm() -> list[str]:
     exited. The next participant that gets the same port number on that domain opens the old file
     and receives nothing over shared memory: in one test run every graph test after the
     orchestrator's kill tests failed on "no /lomanip/scene_objects received" (README, "Tests"). A
-    live participant always maps its own port and segment, so a file nobody maps is stale.
-    Files of other users cannot be removed here (/dev/shm is sticky) and are left alone.
+    live participant always maps its own port and segment, so a file nobody maps is stale. Files
+    changed in the last ``min_age`` s are left alone: a participant starting right now may have
+    created its file and not mapped it yet. Files of other users cannot be removed here (/dev/shm
+    is sticky) and are left alone.
     """
-    stale = _shm_files() - _shm_in_use()
+    now = time.time()
+    candidates = set()
+    for name in _shm_files():
+        try:
+            st = os.stat(os.path.join("/dev/shm", name))
+        except OSError:
+            continue
+        if now - st.st_mtime >= min_age:
+            candidates.add(name)
     removed = []
-    for name in sorted(stale):
+    for name in sorted(candidates - _shm_in_use()):
         try:
             os.unlink(os.path.join("/dev/shm", name))
             removed.append(name)
