@@ -69,7 +69,7 @@ def _shm_in_use() -> set[str]:
     return used
 
 
-def remove_stale_shm(min_age: float = 10.0) -> list[str]:
+def remove_stale_shm(min_age: float = 10.0, names: set[str] | None = None) -> list[str]:
     """Remove the Fast DDS shared-memory files no live process maps or holds open; their names.
 
     Why: a participant killed without its shutdown (SIGKILL, a crash, OOM) leaves its port file
@@ -79,18 +79,20 @@ def remove_stale_shm(min_age: float = 10.0) -> list[str]:
     orchestrator's kill tests failed on "no /lomanip/scene_objects received" (README, "Tests"). A
     live participant always maps its own port and segment, so a file nobody maps is stale. Files
     changed in the last ``min_age`` s are left alone: a participant starting right now may have
-    created its file and not mapped it yet. Files of other users cannot be removed here (/dev/shm
-    is sticky) and are left alone.
+    created its file and not mapped it yet. ``names`` limits the removal to those files. Files of
+    other users cannot be removed here (/dev/shm is sticky) and are left alone.
     """
     now = time.time()
     candidates = set()
-    for name in _shm_files():
+    for name in _shm_files() if names is None else names:
         try:
             st = os.stat(os.path.join("/dev/shm", name))
         except OSError:
             continue
         if now - st.st_mtime >= min_age:
             candidates.add(name)
+    if not candidates:
+        return []
     removed = []
     for name in sorted(candidates - _shm_in_use()):
         try:
@@ -198,14 +200,6 @@ class ProcessGraph:
         self._cleanup_shm()
 
     def _cleanup_shm(self) -> None:
-        leftover = _shm_files() - self._shm_before
-        if not leftover:
-            return
-        stale = leftover - _shm_in_use()
-        for name in stale:
-            try:
-                os.unlink(os.path.join("/dev/shm", name))
-            except OSError:
-                pass
-        if stale:
-            self._say(f"removed {len(stale)} stale Fast DDS shared-memory file(s)")
+        removed = remove_stale_shm(min_age=0.0, names=_shm_files() - self._shm_before)
+        if removed:
+            self._say(f"removed {len(removed)} stale Fast DDS shared-memory file(s)")

@@ -68,7 +68,7 @@ class Structure:
     self_pairs: tuple  # (sphere i, sphere j)
     #: torque-row groups (model.torque_row_joints) whose rows also carry the inertia of the links
     #: beyond the joint (Options.inertial_torque_groups)
-    inertial_groups: tuple = ("waist",)
+    inertial_groups: tuple
 
     def key(self) -> str:
         return hashlib.sha1(repr(self).encode()).hexdigest()[:12]
