@@ -166,8 +166,10 @@ def run_graph(graph: ProcessGraph, duration: float | None, ready_timeout: float 
         print(f"[lomanip] error: {exc}", file=sys.stderr, flush=True)
         code = EXIT_GRAPH
     finally:
-        graph.shutdown()
+        # our own participant first: it maps the nodes' shared-memory ports it talks to, so with it
+        # still alive the graph's clean-up had to leave a port a node left behind, stale once we exit
         close_probe()
+        graph.shutdown()
         for s, h in previous.items():
             signal.signal(s, h)
         print("[lomanip] stopped:\n  " + "\n  ".join(graph.status_lines()), flush=True)
