@@ -234,7 +234,7 @@ def make_parser() -> argparse.ArgumentParser:
     demo.add_argument("--no-plan", action="store_true", help="only step 1 (graph, bag, PNGs)")
     demo.add_argument("--execute", action=argparse.BooleanOptionalAction, default=True,
                       help="execute the plan under physics afterwards (default; --no-execute: plan only)")
-    demo.add_argument("--no-progress", action="store_true", help="log lines instead of a progress bar")
+    demo.add_argument("--no-progress", action="store_true", help="log lines instead of a progress bar (always, when stderr is not a terminal)")
     demo.set_defaults(func=cmd_demo)
     return parser
 

@@ -5,6 +5,7 @@ Ctrl-C cancels the goal on the planner and waits (briefly) for it to acknowledge
 """
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass
 
@@ -53,11 +54,13 @@ def goal_from_task(task: Task, execute: bool = False) -> Plan.Goal:
 
 
 class _Progress:
-    """A tqdm bar driven by Plan feedback (stage, subtask, TO iteration)."""
+    """A tqdm bar driven by Plan feedback (stage, subtask, TO iteration); log lines instead when
+    the bar is off or stderr is not a terminal (a bar redrawn into a file or a CI log is one line
+    per TO iteration: 80 kB for the demo's push)."""
 
     def __init__(self, enabled: bool):
         self.bar = None
-        if enabled:
+        if enabled and sys.stderr.isatty():
             from tqdm import tqdm
 
             self.bar = tqdm(total=100, unit="%", bar_format="{l_bar}{bar}| {elapsed} {postfix}")

@@ -114,6 +114,6 @@ def add_parser(sub) -> None:
     p.add_argument("--execute", action="store_true", help="execute the trajectory in the simulator afterwards")
     p.add_argument("--max-iterations", type=int, help="TO iteration limit")
     p.add_argument("--timeout", type=float, default=1800.0, help="s to wait for the plan result")
-    p.add_argument("--no-progress", action="store_true", help="log lines instead of a progress bar")
+    p.add_argument("--no-progress", action="store_true", help="log lines instead of a progress bar (always, when stderr is not a terminal)")
     p.add_argument("--run-dir", default="runs", help="where outputs go")
     p.set_defaults(func=cmd_plan)
