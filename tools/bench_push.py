@@ -14,6 +14,13 @@ distance, max/RMS pelvis error; writes runs/bench_push/summary.json (summary_rep
     .venv/bin/python tools/bench_push.py --cases base --set double_support_com_margin=null
     .venv/bin/python tools/bench_push.py --replay        # execute the saved plans again, no TO
     .venv/bin/python tools/bench_push.py --replay --cases base --video   # + MP4, frames, strip
+    .venv/bin/python tools/bench_push.py --problems runs/*/logs/to_problem_1.pkl --out runs/bench_push_graph
+
+``--problems`` re-solves TO problems that graph runs saved (the TO node's ``problem_dir``; each
+``lomanip plan``/``make demo`` run keeps its own under ``runs/<run>/logs/``) with the task's current
+TO options, then executes them from the scenario's start: the graph's own problems, whose plans
+fall more often than the layouts' (docs/execution.md, session 14). Cases are named after the run
+folder; ``--replay --problems ...`` executes their saved plans again.
 
 Each case saves its plan (plan.npz) and its TO problem (problem.pkl, for the contact schedule) so
 that ``--replay`` measures a controller change on the same plans in seconds instead of minutes.
@@ -55,15 +62,50 @@ def task_and_overrides(position) -> tuple[dict, dict]:
     return task, overrides
 
 
-def run_case(name: str, position, extra_options: dict, out_root: Path) -> dict:
-    from lomanip_planner import offline
+def task_options(task: dict, extra_options: dict):
+    """TO options of the demo's task: solver.yaml, then the task file's, then ``extra_options``."""
     from lomanip_to import fixtures
 
-    task, overrides = task_and_overrides(position)
     solver_yaml = yaml.safe_load(Path(fixtures.CONFIG_DIR, "solver.yaml").read_text())
     options = fixtures.load_options(solver_yaml.get("options"))
     options = fixtures.load_options(task.get("options"), options)
-    options = fixtures.load_options(extra_options, options)
+    return fixtures.load_options(extra_options, options)
+
+
+def problem_case_name(path: Path) -> str:
+    """runs/<run>/logs/to_problem_1.pkl -> '<run>_1' (the file's stem elsewhere)."""
+    if path.parent.name == "logs" and path.stem.startswith("to_problem_"):
+        return f"{path.parent.parent.name}_{path.stem.rsplit('_', 1)[-1]}"
+    return path.stem
+
+
+def solve_saved_problem(path: Path, extra_options: dict, out_root: Path) -> dict:
+    """Re-solve a graph run's saved TO problem with the task's options, then execute it."""
+    from lomanip_to import solver
+
+    task, overrides = task_and_overrides(None)
+    with open(path, "rb") as f:
+        problem = pickle.load(f)
+    problem.options = task_options(task, extra_options)
+    name = problem_case_name(path)
+    t0 = time.perf_counter()
+    res = solver.solve(problem)
+    row = {"case": name, "problem": str(path), "to_status": res.stats.status, "to_success": bool(res.success),
+           "to_iterations": res.stats.iterations, "plan_time_s": round(time.perf_counter() - t0, 1)}
+    (out_root / name).mkdir(parents=True, exist_ok=True)
+    res.save(out_root / name / "plan.npz")
+    with open(out_root / name / "problem.pkl", "wb") as f:
+        pickle.dump(problem, f)
+    if not res.success:
+        return row
+    return execute(row, res, problem, task["scenario"], overrides, out_root / name)
+
+
+def run_case(name: str, position, extra_options: dict, out_root: Path) -> dict:
+    from lomanip_planner import offline
+
+    task, overrides = task_and_overrides(position)
+    options = task_options(task, extra_options)
     t0 = time.perf_counter()
     plan = offline.plan(task["scenario"], task["prompts"], overrides=overrides, options=options)
     res = plan.result
@@ -136,6 +178,8 @@ def main() -> int:
                     help="override a WbcGains field of the controller, e.g. w_contact=1e4 (repeatable)")
     ap.add_argument("--video", action="store_true", help="save a video, frames and a strip of each execution")
     ap.add_argument("--replay", action="store_true", help="execute the plans saved under --out again (no TO)")
+    ap.add_argument("--problems", nargs="+", default=[], metavar="PKL",
+                    help="instead of the layouts: re-solve TO problems saved by graph runs (runs/<run>/logs/to_problem_*.pkl)")
     args = ap.parse_args()
     extra = {}
     for item in args.set:
@@ -159,25 +203,36 @@ def main() -> int:
             return 2
         gains[key] = _value(val)
     WBC_GAINS = replace(WbcGains(), **gains)
+    missing = [p for p in args.problems if not Path(p).is_file()]
+    if missing:
+        print(f"bench_push: no such problem file: {missing[0]}", file=sys.stderr)
+        return 2
     if "all" in args.cases:
         args.cases = list(CASES)
     out_root = ROOT / args.out
     out_root.mkdir(parents=True, exist_ok=True)
-    print(f"{'case':<10}{'TO':>22}{'it':>6}{'plan s':>8}{'fell':>6}{'end s':>7}{'trolley':>9}"
+    jobs = [(problem_case_name(Path(p)), Path(p)) for p in args.problems] or [(n, None) for n in args.cases]
+    width = max([10] + [len(n) + 1 for n, _ in jobs])
+    print(f"{'case':<{width}}{'TO':>22}{'it':>6}{'plan s':>8}{'fell':>6}{'end s':>7}{'trolley':>9}"
           f"{'pelvis max/rms cm':>19}{'success':>9}")
     rows = []
-    for name in args.cases:
+    for name, path in jobs:
         try:
-            row = replay_case(name, CASES[name], out_root) if args.replay else run_case(name, CASES[name], extra, out_root)
+            if args.replay:
+                row = replay_case(name, CASES.get(name), out_root)
+            elif path is not None:
+                row = solve_saved_problem(path, extra, out_root)
+            else:
+                row = run_case(name, CASES[name], extra, out_root)
         except FileNotFoundError as e:
             print(f"bench_push: {e}", file=sys.stderr)
             return 2
         rows.append(row)
         if "fell" not in row:
-            print(f"{name:<10}{row['to_status'][:21]:>22}{row['to_iterations']:>6}{row['plan_time_s']:>8.0f}  not executed")
+            print(f"{name:<{width}}{row['to_status'][:21]:>22}{row['to_iterations']:>6}{row['plan_time_s']:>8.0f}  not executed")
             continue
         trolley = row["task_success_detail"].split("trolley moved ")[-1].split(" m")[0]
-        print(f"{name:<10}{row['to_status'][:21]:>22}{row['to_iterations']:>6}{row['plan_time_s']:>8.0f}"
+        print(f"{name:<{width}}{row['to_status'][:21]:>22}{row['to_iterations']:>6}{row['plan_time_s']:>8.0f}"
               f"{str(row['fell']):>6}{row['duration']:>7.2f}{trolley:>9}"
               f"{100 * row['max_base_position_error']:>10.1f}/{100 * row['rms_base_position_error']:<8.1f}"
               f"{str(row['task_success']):>9}")
