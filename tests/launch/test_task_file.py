@@ -67,5 +67,6 @@ def test_task_options_reach_the_trajectory_options_message():
 
     msg = TrajectoryOptions()
     assert list(msg.inertial_torque_groups) == ["waist"]  # the TO's default (lomanip_to.problem.Options)
+    assert msg.single_support_com_lateral == 0.08  # likewise
     for key, kind in _OPTION_FIELDS.items():
         assert isinstance(getattr(msg, key), kind), key

@@ -90,3 +90,18 @@ def test_options_round_trip_the_inertial_torque_groups(model):
     assert conv.options_from_msg(req.options).inertial_torque_groups == ()
     msg = TrajectoryOptions(inertial_torque_groups=["waist", "left_hand"])
     assert conv.options_from_msg(msg).inertial_torque_groups == ("waist", "left_hand")
+
+
+def test_options_round_trip_the_single_support_com_lateral(model):
+    """The message's default is the TO's; a task's tighter margin survives the trip; <= 0 is off."""
+    from lomanip_msgs.msg import TrajectoryOptions
+    from lomanip_to.problem import Options
+
+    assert conv.options_from_msg(TrajectoryOptions()).single_support_com_lateral == Options().single_support_com_lateral
+    prob = load_problem("case_one_step", model=model)
+    prob.options = prob.options.replaced(single_support_com_lateral=0.04)
+    req = conv.request_from_problem(prob, model.joint_names)
+    assert conv.options_from_msg(req.options).single_support_com_lateral == 0.04
+    prob.options = prob.options.replaced(single_support_com_lateral=None)
+    req = conv.request_from_problem(prob, model.joint_names)
+    assert conv.options_from_msg(req.options).single_support_com_lateral is None

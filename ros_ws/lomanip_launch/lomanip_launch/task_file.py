@@ -22,7 +22,8 @@ from lomanip_launch.environment import config_dir
 TASKS_DIR = config_dir() / "tasks"
 _OPTION_FIELDS = {"use_keyframe_base_cost": bool, "use_keyframe_foot_cost": bool, "use_keyframe_warm_start": bool,
                   "collision_hard_constraint": bool, "collision_penalty": bool, "collision_homotopy": bool,
-                  "max_iterations": int, "output_rate": float, "time_limit": float, "inertial_torque_groups": list}
+                  "max_iterations": int, "output_rate": float, "time_limit": float, "inertial_torque_groups": list,
+                  "single_support_com_lateral": float}
 
 
 class TaskFileError(ValueError):

@@ -167,7 +167,8 @@ def options_from_msg(o: TrajectoryOptions, base: P.Options | None = None) -> P.O
         use_keyframe_warm_start=o.use_keyframe_warm_start, collision_hard_constraint=o.collision_hard_constraint,
         collision_penalty=o.collision_penalty, collision_homotopy=o.collision_homotopy,
         max_iterations=int(o.max_iterations), output_rate=float(o.output_rate), time_limit=float(o.time_limit),
-        inertial_torque_groups=tuple(str(g) for g in o.inertial_torque_groups))
+        inertial_torque_groups=tuple(str(g) for g in o.inertial_torque_groups),
+        single_support_com_lateral=float(o.single_support_com_lateral) if o.single_support_com_lateral > 0 else None)
 
 
 def initial_configuration(joints, base_pose: Pose, keyframes: list[P.Keyframe], joint_names) -> tuple:
@@ -360,7 +361,8 @@ def request_from_problem(prob: P.Problem, joint_names):
         use_keyframe_warm_start=o.use_keyframe_warm_start, collision_hard_constraint=o.collision_hard_constraint,
         collision_penalty=o.collision_penalty, collision_homotopy=o.collision_homotopy,
         max_iterations=int(o.max_iterations), output_rate=float(o.output_rate), time_limit=float(o.time_limit),
-        inertial_torque_groups=list(o.inertial_torque_groups))
+        inertial_torque_groups=list(o.inertial_torque_groups),
+        single_support_com_lateral=float(o.single_support_com_lateral or 0.0))
     if prob.initial_configuration is not None:
         x0 = np.asarray(prob.initial_configuration, float)
         req.initial_base_pose = Pose(position=_pt(x0[:3]), orientation=_q(rot_to_quat_xyzw(rpy_to_rot(x0[3:6]))))
