@@ -72,6 +72,14 @@ def task_options(task: dict, extra_options: dict):
     return fixtures.load_options(extra_options, options)
 
 
+def save_plan(case_dir: Path, res, problem) -> None:
+    """plan.npz (TOResult.load reads it back) and problem.pkl (our own file, read by --replay only)."""
+    case_dir.mkdir(parents=True, exist_ok=True)
+    res.save(case_dir / "plan.npz")
+    with open(case_dir / "problem.pkl", "wb") as f:
+        pickle.dump(problem, f)
+
+
 def problem_case_name(path: Path) -> str:
     """runs/<run>/logs/to_problem_1.pkl -> '<run>_1' (the file's stem elsewhere)."""
     if path.parent.name == "logs" and path.stem.startswith("to_problem_"):
@@ -92,10 +100,7 @@ def solve_saved_problem(path: Path, extra_options: dict, out_root: Path) -> dict
     res = solver.solve(problem)
     row = {"case": name, "problem": str(path), "to_status": res.stats.status, "to_success": bool(res.success),
            "to_iterations": res.stats.iterations, "plan_time_s": round(time.perf_counter() - t0, 1)}
-    (out_root / name).mkdir(parents=True, exist_ok=True)
-    res.save(out_root / name / "plan.npz")
-    with open(out_root / name / "problem.pkl", "wb") as f:
-        pickle.dump(problem, f)
+    save_plan(out_root / name, res, problem)
     if not res.success:
         return row
     return execute(row, res, problem, task["scenario"], overrides, out_root / name)
@@ -112,10 +117,7 @@ def run_case(name: str, position, extra_options: dict, out_root: Path) -> dict:
     row = {"case": name, "trolley_position": overrides.get("trolley_position"), "to_status": res.stats.status,
            "to_success": bool(res.success), "to_iterations": res.stats.iterations,
            "plan_time_s": round(time.perf_counter() - t0, 1)}
-    (out_root / name).mkdir(parents=True, exist_ok=True)
-    res.save(out_root / name / "plan.npz")  # TOResult.load reads it back (tools/bench_exec.py style)
-    with open(out_root / name / "problem.pkl", "wb") as f:  # our own file, read back by --replay only
-        pickle.dump(plan.problem, f)
+    save_plan(out_root / name, res, plan.problem)
     if not res.success:
         return row
     return execute(row, res, plan.problem, task["scenario"], overrides, out_root / name)
