@@ -544,7 +544,7 @@ class ProblemData:
             self._tilt0 = {f: np.array([limbs[f][1][0, 2], limbs[f][1][1, 2]]) for f in FEET}
         return self._tilt0[foot]
 
-    def fill(self, win: Window, expo: float, hard: bool, penalty: bool, homotopy: bool):
+    def fill(self, win: Window, expo: float, hard: bool, penalty: bool, homotopy: "bool | str"):
         """Bounds (lbw, ubw: n_w x (K+1)), row bounds (lbg, ubg: n_g x K), params P (n_p x K), W0."""
         prob, m, w = self.prob, self.model, self.w
         opt = prob.options
@@ -622,7 +622,7 @@ class ProblemData:
                          [INF, INF, INF, CARRY_TILT, CARRY_TILT, INF])
             # a slack whose pair is off at this knot has no row and no cost: left free, the barrier
             # alone pushed it up without end (S1's carry: 4.3 after 700 iterations), so pin it
-            setb("slack", k, 0, np.array([INF if homotopy and self._pair_enabled(k, s, oid) else 0.0
+            setb("slack", k, 0, np.array([INF if homotopy is True and self._pair_enabled(k, s, oid) else 0.0
                                           for s, (oid, _) in self.pairs]))
         # start and end at rest: only xd is bounded (bounding the momenta too would leave the CMM
         # rows of these knots with an all-zero Jacobian -> degenerate, slow ipopt convergence)
@@ -712,7 +712,7 @@ class ProblemData:
             for i, (s, (oid, pi)) in enumerate(self.pairs):
                 on = self._pair_enabled(k, s, oid)
                 rows(f"c{i} collision", k, self._clearance(s) if (hard and on) else -INF, INF)
-                rows(f"c{i} homotopy surrogate", k, 0 if (homotopy and on) else -INF, INF)
+                rows(f"c{i} homotopy surrogate", k, 0 if (homotopy is True and on) else -INF, INF)
             for (a, b) in win.st.self_pairs:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
             rows("floor clearance", k, 0, INF)  # smooth, so on in every homotopy stage
@@ -1050,6 +1050,16 @@ class ProblemData:
                     return False
         return True
 
+    def _homotopy_weight(self, homotopy) -> float:
+        """Weight of the surrogate's penalty: with slacks (``True``) w_hom on (w_slack s^2 +
+        max(1 - F, 0)^2); without (``"penalty"``) the same minimum over s, w_hom (w_slack + 1)
+        max(1 - F, 0)^2."""
+        if homotopy is True:
+            return self.w["w_hom"]
+        if homotopy == "penalty":
+            return self.w["w_hom"] * (self.w["w_slack"] + 1.0)
+        return 0.0
+
     def _pair_params(self, k, i, s, oid, pi, col, P, expo, penalty, homotopy, hard=True):
         o = self.prob.object(oid)
         pr = o.primitives[pi]
@@ -1072,4 +1082,4 @@ class ProblemData:
         col[P[f"c{i}_half"]] = pr.half_extents() + (0.0 if hard else self._clearance(s))
         on = self._pair_enabled(k, s, oid)
         col[P[f"c{i}_w"]] = [self.w["w_pen"] if (penalty and on) else 0.0,
-                             self.w["w_hom"] if (homotopy and on) else 0.0, expo]
+                             self._homotopy_weight(homotopy) if on else 0.0, expo]

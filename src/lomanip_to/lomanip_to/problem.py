@@ -207,6 +207,9 @@ TORQUE_GROUPS = ("left_foot", "right_foot", "left_hand", "right_hand", "waist")
 #: Hessians the solver can hand ipopt (Options.guide_hessian / final_hessian, assembly.AssembledNLP.hessian)
 HESSIANS = ("exact", "cost")
 
+#: forms of the collision homotopy's surrogate (Options.homotopy_form)
+HOMOTOPY_FORMS = ("auto", "slacks", "penalty")
+
 
 @dataclass
 class Options:
@@ -219,6 +222,14 @@ class Options:
     collision_hard_constraint: bool = True
     collision_penalty: bool = True
     collision_homotopy: bool = True
+    #: how the homotopy's surrogate enters: "slacks" (rows F - 1 + s >= 0, one slack per pair, cost
+    #: w_hom (w_slack s^2 + max(1 - F, 0)^2)), "penalty" (no slacks: the same cost minimised over s,
+    #: w_hom (w_slack + 1) max(1 - F, 0)^2; in the final stage the hard rows imply F >= 1, so it
+    #: drops the surrogate) or "auto": "penalty" in an NLP in which an object is carried, else
+    #: "slacks".  Measured (docs/to.md, session 15): S1's carry converges only without slacks
+    #: (thousands of slacks on inactive rows held ipopt's barrier at 1-10), S1's last subtask and the
+    #: demo's push converge and execute better with them.
+    homotopy_form: str = "auto"
     max_iterations: int = 500
     output_rate: float = 100.0
     #: knot spacing targets (s) for stance and walking phases (phase-wise sizing)
@@ -252,9 +263,10 @@ class Options:
     #: (docs/to.md); the stitched trajectory is evaluated on the whole problem's rows and checked as it is.
     polish_iterations: int = 0
     #: collision sphere groups checked against objects ("minimal collision set"); the physical check
-    #: counts every sphere, so a group left out here can fail it (S2's upper arm, 60 mm into the box)
+    #: counts every sphere, so a group left out here can fail it (S2's upper arm, 60 mm into the box;
+    #: S1's head, 113 mm into the lifted box)
     collision_groups: tuple = ("left_foot", "right_foot", "left_shin", "right_shin", "left_thigh",
-                               "right_thigh", "pelvis", "torso", "left_hand", "right_hand",
+                               "right_thigh", "pelvis", "torso", "head", "left_hand", "right_hand",
                                "left_forearm", "right_forearm", "left_upper_arm", "right_upper_arm")
     self_collision: bool = True
     #: m: a stance foot on the floor stays inside this square round its foothold in the contact
@@ -347,6 +359,9 @@ def validate_problem(prob: Problem, model=None) -> None:
         if getattr(prob.options, name) not in HESSIANS:
             raise ProblemError(INVALID_REQUEST, f"options.{name} must be one of {', '.join(HESSIANS)}, "
                                                 f"not {getattr(prob.options, name)!r}", "options")
+    if prob.options.homotopy_form not in HOMOTOPY_FORMS:
+        raise ProblemError(INVALID_REQUEST, f"options.homotopy_form must be one of {', '.join(HOMOTOPY_FORMS)}, "
+                                            f"not {prob.options.homotopy_form!r}", "options")
     bad = [g for g in prob.options.inertial_torque_groups if g not in TORQUE_GROUPS]
     if bad:
         raise ProblemError(INVALID_REQUEST, f"options.inertial_torque_groups: unknown group(s) {', '.join(map(repr, bad))} "

@@ -145,11 +145,24 @@ def get_solver(wd, structure, K: int, ipopt_opts: dict, threads: int = 2, tag: s
     return nlp, _SOLVERS[skey]
 
 
-def homotopy_stages(opt) -> list:
-    """[(exponent, hard, penalty, homotopy)] solved in sequence, each warm-started."""
-    if opt.collision_homotopy:
-        return [(2.0, False, opt.collision_penalty, True), (6.0, opt.collision_hard_constraint, opt.collision_penalty, True)]
-    return [(2.0, opt.collision_hard_constraint, opt.collision_penalty, False)]
+def homotopy_stages(opt, data: ProblemData | None = None) -> list:
+    """[(exponent, hard, penalty, homotopy)] solved in sequence, each warm-started.  ``homotopy`` is
+    True (surrogate rows with slacks), "penalty" (the surrogate as a penalty, no slacks) or False;
+    ``Options.homotopy_form`` "auto" picks the penalty for an NLP (``data``) that carries an object."""
+    if not opt.collision_homotopy:
+        return [(2.0, opt.collision_hard_constraint, opt.collision_penalty, False)]
+    hard = opt.collision_hard_constraint
+    form = opt.homotopy_form
+    if form == "auto":
+        form = "penalty" if data is not None and carries_object(data) else "slacks"
+    if form == "slacks":
+        return [(2.0, False, opt.collision_penalty, True), (6.0, hard, opt.collision_penalty, True)]
+    return [(2.0, False, opt.collision_penalty, "penalty"), (6.0, hard, opt.collision_penalty, False if hard else "penalty")]
+
+
+def carries_object(data: ProblemData) -> bool:
+    """Whether some moving object is carried (free: off its support, held by the hands) at a knot."""
+    return any(data.obj_mode(k, oid) == "free" for oid in data.midx for k in range(data.grid.K))
 
 
 def _ipopt_options(opt) -> dict:
@@ -222,7 +235,7 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
     base = _ipopt_options(opt)
     if max_iter is not None:
         base["max_iter"] = int(max_iter)
-    stages = stages if stages is not None else homotopy_stages(opt)
+    stages = stages if stages is not None else homotopy_stages(opt, data)
     status, sol = "", None
     lam_x = lam_g = None
     warm_ok = lam is not None  # multipliers handed in by the caller come from converged solves
@@ -255,7 +268,7 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
         hessian = opt.final_hessian if last_stage else opt.guide_hessian
         rows = active_rows(args["lbg"], args["ubg"])
         nlp, s = get_solver(wd, data.structure, K, o, threads, tag, hessian, rows)
-        if z0 is not None and hom:
+        if z0 is not None and hom is True:
             args["x0"] = np.clip(_feasible_slacks(win, nlp, K, args["x0"], args["p"]), args["lbx"], args["ubx"])
         kind = "surrogate guide" if not last_stage else "final"
         stage_name = f"{label}{kind}"
@@ -298,7 +311,7 @@ def _start_violation(wd, data: ProblemData, K: int, threads: int, win, z0, args:
     itself will raise them)."""
     nlp = get_nlp(wd, data.structure, K, threads)
     x0 = np.clip(z0, args["lbx"], args["ubx"])
-    if hom:
+    if hom is True:
         x0 = np.clip(_feasible_slacks(win, nlp, K, x0, args["p"]), args["lbx"], args["ubx"])
     _, g = nlp.F_nlp(x0, args["p"])
     g = np.array(g).ravel()
@@ -397,14 +410,14 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
             z_st, lam_st = _stitch(win, data, parts)
             Zm = z_st.reshape(data.grid.K + 1, win.W.n)
             data.use_solved_support_poses({oid: Zm[:data.grid.K, win.W[f"o{j}_pose"]] for oid, j in data.midx.items()})
-            lbw, ubw, lbg, ubg, Pm, _ = data.fill(win, *homotopy_stages(opt)[-1])
+            lbw, ubw, lbg, ubg, Pm, _ = data.fill(win, *homotopy_stages(opt, data)[-1])
             nlp = get_nlp(wd, data.structure, data.grid.K, threads)
             args = dict(lbx=_vec(lbw), ubx=_vec(ubw), lbg=_vec(lbg), ubg=_vec(ubg), p=_vec(Pm))
             z, f = z_st, float(nlp.F_nlp(z_st, args["p"])[0])
             if opt.polish_iterations > 0 and not run.timed_out:
                 zp, _, _, pst, nlp, args_p, Pm_p, lbg_p, ubg_p, fp = _run_stages(
                     run, data, win, wd, threads, "whole-horizon polish ", z0=z_st, lam=lam_st,
-                    stages=[homotopy_stages(opt)[-1]], max_iter=opt.polish_iterations)
+                    stages=[homotopy_stages(opt, data)[-1]], max_iter=opt.polish_iterations)
                 if _converged(pst):
                     z, f, args, Pm, lbg, ubg = zp, fp, args_p, Pm_p, lbg_p, ubg_p
                     status = pst
