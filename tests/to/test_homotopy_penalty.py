@@ -10,18 +10,19 @@ from lomanip_to.fixtures import load_problem
 from lomanip_to.problem import ProblemError
 
 
-def test_auto_form_drops_the_slacks_where_an_object_is_carried(g1):
-    lift = load_problem("case_lift_box", model=g1)
-    lift_data = ProblemData(lift, g1)
-    assert solver.carries_object(lift_data)
-    guide, final = solver.homotopy_stages(lift.options, lift_data)
+def test_auto_form_drops_the_slacks_where_an_object_is_carried_while_walking(g1):
+    s1 = load_problem("s1_basket", model=g1)
+    s1_data = ProblemData(s1, g1)
+    assert solver.carries_object(s1_data)
+    guide, final = solver.homotopy_stages(s1.options, s1_data)
     assert guide[3] == "penalty" and not guide[1]
     assert final[3] is False and final[1]  # the hard rows imply F >= 1: no surrogate in the final stage
-    step = load_problem("case_one_step", model=g1)
-    step_data = ProblemData(step, g1)
-    assert not solver.carries_object(step_data)
-    with_homotopy = dataclasses.replace(step.options, collision_homotopy=True)
-    assert [s[3] for s in solver.homotopy_stages(with_homotopy, step_data)] == [True, True]
+    for case in ("case_lift_box", "case_one_step"):  # a lift in place; a step with nothing held
+        prob = load_problem(case, model=g1)
+        data = ProblemData(prob, g1)
+        assert not solver.carries_object(data)
+        with_homotopy = dataclasses.replace(prob.options, collision_homotopy=True)
+        assert [s[3] for s in solver.homotopy_stages(with_homotopy, data)] == [True, True]
 
 
 def test_forms_by_option(g1):
