@@ -226,9 +226,9 @@ class Options:
     #: w_hom (w_slack s^2 + max(1 - F, 0)^2)), "penalty" (no slacks: the same cost minimised over s,
     #: w_hom (w_slack + 1) max(1 - F, 0)^2; in the final stage the hard rows imply F >= 1, so it
     #: drops the surrogate) or "auto": "penalty" in an NLP in which an object is carried while the
-    #: robot walks, else "slacks".  Measured (docs/to.md, session 15): S1's carry converges only without slacks
-    #: (thousands of slacks on inactive rows held ipopt's barrier at 1-10), S1's last subtask and the
-    #: demo's push converge and execute better with them.
+    #: robot walks, else "slacks".  Measured (docs/to.md, session 15): S1's carry converges only
+    #: without slacks (thousands of slacks on inactive rows held ipopt's barrier at 1-10); S1's last
+    #: subtask and the demo's push converge and execute better with them.
     homotopy_form: str = "auto"
     max_iterations: int = 500
     output_rate: float = 100.0

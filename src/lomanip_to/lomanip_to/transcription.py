@@ -29,8 +29,9 @@ rows also carry the inertia of the torso and arms (rate of their momentum, knot 
 Collisions: robot spheres vs object boxes: hard constraint on the exact signed distance, quadratic
 penalty on penetration, and a homotopy on a super-ellipsoid surrogate whose exponent is raised
 between solves (2 = ellipsoid -> box): either rows F - 1 + s >= 0 with a penalised slack per pair,
-or (default, ``Options.homotopy_slacks`` off) the penalty they amount to, with the slacks pinned
-at 0 (``discretize.ProblemData._homotopy_weight``); self-collision sphere pairs (hard + penalty).
+or the penalty they amount to, with the slacks pinned at 0 (``Options.homotopy_form``, by default
+the penalty where an object is carried while walking; ``discretize.ProblemData._homotopy_weight``);
+self-collision sphere pairs (hard + penalty).
 
 Rows that do not apply at a knot get infinite bounds; forces that do not apply get zero bounds, so
 one window Function serves every knot and its derivatives are built once (see ``solver.py``).
