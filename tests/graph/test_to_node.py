@@ -111,6 +111,13 @@ def test_bad_requests_get_codes_before_solving(to_node, client):
     phases[1].start = phases[0].start   # overlaps the first phase
     res = _call(client, req, to_node, timeout=30)
     assert res.error_code.val == ErrorCode.INVALID_REQUEST and "overlap" in res.error_code.message
+
+    from lomanip_msgs.msg import SolverOption
+
+    req = _request("case_lift_box")
+    req.options.solver_options = [SolverOption(name="perturb_always_cd", value="maybe")]
+    res = _call(client, req, to_node, timeout=30)
+    assert res.error_code.val == ErrorCode.INVALID_REQUEST and "perturb_always_cd" in res.error_code.message
     assert to_node[0].poll() is None
 
 

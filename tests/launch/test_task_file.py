@@ -31,6 +31,8 @@ def test_missing_file_lists_shipped_tasks(tmp_path):
     ({"scenario": "s1_basket", "prompts": ["a"], "options": {"warp_speed": True}}, "unknown option"),
     ({"scenario": "s1_basket", "prompts": ["a"], "options": {"inertial_torque_groups": "waist"}}, "must be list"),
     ({"scenario": "s1_basket", "prompts": ["a"], "options": {"inertial_torque_groups": [1]}}, "list of group names"),
+    ({"scenario": "s1_basket", "prompts": ["a"], "options": {"solver_options": ["tol"]}}, "must be dict"),
+    ({"scenario": "s1_basket", "prompts": ["a"], "options": {"solver_options": {"tol": [1]}}}, "ipopt option names"),
     ({"scenario": "s1_basket", "prompts": ["a"], "colour": "red"}, "unknown field"),
 ])
 def test_bad_tasks_are_rejected_with_a_reason(data, match):
@@ -69,4 +71,24 @@ def test_task_options_reach_the_trajectory_options_message():
     assert list(msg.inertial_torque_groups) == ["waist"]  # the TO's default (lomanip_to.problem.Options)
     assert msg.single_support_com_lateral == 0.08  # likewise
     for key, kind in _OPTION_FIELDS.items():
+        if key == "solver_options":  # a mapping in YAML, SolverOption[] in the message
+            assert list(getattr(msg, key)) == []
+            continue
         assert isinstance(getattr(msg, key), kind), key
+
+
+def test_solver_options_become_solver_option_entries():
+    """YAML's yes/no are booleans; ipopt wants the words. Numbers travel as their text."""
+    from lomanip_launch.plan_client import goal_from_task
+
+    task = task_from_dict({"scenario": "s1_basket", "prompts": ["a"],
+                           "options": {"solver_options": {"perturb_always_cd": True, "tol": 1e-5, "mu_strategy": "monotone"}}})
+    entries = {o.name: o.value for o in goal_from_task(task).options.solver_options}
+    assert entries == {"perturb_always_cd": "yes", "tol": "1e-05", "mu_strategy": "monotone"}
+
+
+def test_s1_task_asks_for_the_configuration_that_passed_its_checks():
+    """docs/to.md, session 15: perturb_always_cd and the arms' inertial torque rows."""
+    opts = load_task("s1_basket").options
+    assert opts["solver_options"] == {"perturb_always_cd": "yes"}
+    assert set(opts["inertial_torque_groups"]) == {"waist", "left_hand", "right_hand"}

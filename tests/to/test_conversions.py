@@ -92,6 +92,25 @@ def test_options_round_trip_the_inertial_torque_groups(model):
     assert conv.options_from_msg(msg).inertial_torque_groups == ("waist", "left_hand")
 
 
+def test_options_round_trip_the_solver_options(model):
+    """Text values become ipopt's types (int, float, string); the node's own ipopt options stay
+    unless the request names the same option."""
+    from lomanip_msgs.msg import SolverOption, TrajectoryOptions
+    from lomanip_to.problem import Options
+
+    msg = TrajectoryOptions(solver_options=[SolverOption(name="perturb_always_cd", value="yes"),
+                                            SolverOption(name="acceptable_iter", value="5"),
+                                            SolverOption(name="tol", value="1e-5")])
+    base = Options(ipopt={"mu_strategy": "monotone", "tol": 1e-3})
+    got = conv.options_from_msg(msg, base).ipopt
+    assert got == {"mu_strategy": "monotone", "perturb_always_cd": "yes", "acceptable_iter": 5, "tol": 1e-5}
+    assert isinstance(got["acceptable_iter"], int)
+    prob = load_problem("case_one_step", model=model)
+    prob.options = prob.options.replaced(ipopt={"perturb_always_cd": "yes", "acceptable_iter": 5})
+    req = conv.request_from_problem(prob, model.joint_names)
+    assert conv.options_from_msg(req.options).ipopt == {"perturb_always_cd": "yes", "acceptable_iter": 5}
+
+
 def test_options_round_trip_the_single_support_com_lateral(model):
     """The message's default is the TO's; a task's tighter margin survives the trip; <= 0 is off."""
     from lomanip_msgs.msg import TrajectoryOptions

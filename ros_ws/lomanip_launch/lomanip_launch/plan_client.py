@@ -17,7 +17,7 @@ from rclpy.node import Node
 
 from lomanip_launch.task_file import Task
 from lomanip_msgs.action import Plan
-from lomanip_msgs.msg import ErrorCode, PlacementGoal, ScenarioParameters, TrajectoryOptions
+from lomanip_msgs.msg import ErrorCode, PlacementGoal, ScenarioParameters, SolverOption, TrajectoryOptions
 
 import yaml
 
@@ -37,6 +37,13 @@ class PlanOutcome:
         return self.status == GoalStatus.STATUS_SUCCEEDED and self.result.error_code.val == ErrorCode.SUCCESS
 
 
+def _option_text(value) -> str:
+    """A task file's solver option as the message's text (YAML reads ipopt's yes/no as booleans)."""
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    return str(value)
+
+
 def goal_from_task(task: Task, execute: bool = False) -> Plan.Goal:
     goal = Plan.Goal()
     goal.prompts = list(task.prompts)
@@ -47,7 +54,10 @@ def goal_from_task(task: Task, execute: bool = False) -> Plan.Goal:
     goal.scenario = ScenarioParameters(name=task.scenario, overrides_yaml=overrides)
     options = TrajectoryOptions()
     for key, value in task.options.items():
-        setattr(options, key, type(getattr(options, key))(value))
+        if key == "solver_options":
+            options.solver_options = [SolverOption(name=k, value=_option_text(v)) for k, v in value.items()]
+        else:
+            setattr(options, key, type(getattr(options, key))(value))
     goal.options = options
     goal.execute = execute
     return goal

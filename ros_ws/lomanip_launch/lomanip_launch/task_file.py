@@ -5,7 +5,9 @@
     prompts: ["pick up the box", ...]
     placement_goals:                     # optional
       - {object: box, position: [1.0, 0.4, 0.15], yaw: 0.0}
-    options: {max_iterations: 500}       # optional lomanip_msgs/TrajectoryOptions fields
+    options: {max_iterations: 500}       # optional lomanip_msgs/TrajectoryOptions fields;
+                                         # solver_options as a mapping {ipopt name: value}
+                                         # (YAML's yes/no booleans are ipopt's "yes"/"no")
 
 No rclpy here: the file is validated into a plain :class:`Task`; ``plan_client`` turns it into a goal.
 """
@@ -23,7 +25,7 @@ TASKS_DIR = config_dir() / "tasks"
 _OPTION_FIELDS = {"use_keyframe_base_cost": bool, "use_keyframe_foot_cost": bool, "use_keyframe_warm_start": bool,
                   "collision_hard_constraint": bool, "collision_penalty": bool, "collision_homotopy": bool,
                   "max_iterations": int, "output_rate": float, "time_limit": float, "inertial_torque_groups": list,
-                  "single_support_com_lateral": float}
+                  "single_support_com_lateral": float, "solver_options": dict}
 
 
 class TaskFileError(ValueError):
@@ -92,6 +94,9 @@ def task_from_dict(data: dict, where: str = "task") -> Task:
             raise TaskFileError(f"{where}: option {key} must be {_OPTION_FIELDS[key].__name__}")
         if key == "inertial_torque_groups" and not all(isinstance(g, str) for g in value):
             raise TaskFileError(f"{where}: option inertial_torque_groups must be a list of group names")
+        if key == "solver_options" and not all(isinstance(k, str) and isinstance(v, (str, int, float, bool))
+                                               for k, v in value.items()):
+            raise TaskFileError(f"{where}: option solver_options must map ipopt option names to numbers or strings")
     return Task(scenario, [p.strip() for p in prompts], dict(overrides), goals, dict(options))
 
 

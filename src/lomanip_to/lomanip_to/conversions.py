@@ -22,7 +22,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint, MultiDOFJ
     MultiDOFJointTrajectoryPoint
 
 from lomanip_msgs.msg import (ContactPhase as ContactPhaseMsg, ContactWrench, KnotWrenches, ObjectMotion as
-                              ObjectMotionMsg, ObjectTrajectory, SolverStatistics, TrajectoryOptions,
+                              ObjectMotionMsg, ObjectTrajectory, SolverOption, SolverStatistics, TrajectoryOptions,
                               WholeBodyTrajectory)
 
 from . import problem as P
@@ -168,7 +168,9 @@ def options_from_msg(o: TrajectoryOptions, base: P.Options | None = None) -> P.O
         collision_penalty=o.collision_penalty, collision_homotopy=o.collision_homotopy,
         max_iterations=int(o.max_iterations), output_rate=float(o.output_rate), time_limit=float(o.time_limit),
         inertial_torque_groups=tuple(str(g) for g in o.inertial_torque_groups),
-        single_support_com_lateral=float(o.single_support_com_lateral) if o.single_support_com_lateral > 0 else None)
+        single_support_com_lateral=float(o.single_support_com_lateral) if o.single_support_com_lateral > 0 else None,
+        ipopt={**(base.ipopt if base is not None else {}),
+               **{str(kv.name): P.parse_option_value(str(kv.value)) for kv in o.solver_options}})
 
 
 def initial_configuration(joints, base_pose: Pose, keyframes: list[P.Keyframe], joint_names) -> tuple:
@@ -362,7 +364,8 @@ def request_from_problem(prob: P.Problem, joint_names):
         collision_penalty=o.collision_penalty, collision_homotopy=o.collision_homotopy,
         max_iterations=int(o.max_iterations), output_rate=float(o.output_rate), time_limit=float(o.time_limit),
         inertial_torque_groups=list(o.inertial_torque_groups),
-        single_support_com_lateral=float(o.single_support_com_lateral or 0.0))
+        single_support_com_lateral=float(o.single_support_com_lateral or 0.0),
+        solver_options=[SolverOption(name=str(k), value=str(v)) for k, v in (o.ipopt or {}).items()])
     if prob.initial_configuration is not None:
         x0 = np.asarray(prob.initial_configuration, float)
         req.initial_base_pose = Pose(position=_pt(x0[:3]), orientation=_q(rot_to_quat_xyzw(rpy_to_rot(x0[3:6]))))

@@ -28,7 +28,8 @@ DEFAULT_WEIGHTS = {
     "w_post": 1.0, "w_xd": 0.05, "w_acc": 0.5, "w_force": 0.2, "w_force_rate": 20.0, "w_st_com": 20.0, "w_st_vel": 10.0,
     "w_kff": 5e2, "w_wk_base": 20.0, "w_upright": 20.0, "w_anchor": 10.0, "w_kfb_z": 100.0,
     "w_kfb_th": 10.0, "w_slack": 1e2, "w_self": 1e3, "w_swing": 2e3, "swing_clearance": 0.06,
-    "w_pen": 1e4, "w_hom": 1e2, "w_obj_reg": 1.0, "w_obj_acc": 20.0, "w_goal": 1e3,
+    "w_pen": 1e4, "w_hom": 1e2, "w_obj_reg": 1.0, "w_obj_acc": 20.0, "w_carry_acc": 0.0, "w_carry_aacc": 0.0,
+    "w_goal": 1e3,
     "mu_foot": 0.6, "mu_hand": 0.8, "mu_obj": 0.5, "self_margin": 0.0,
     "pair_prefilter": 0.25,
 }
@@ -48,6 +49,9 @@ def make_grid(prob: Problem) -> Grid:
     ts, ph = [], []
     for i, p in enumerate(prob.phases):
         dt = prob.options.dt_walking if p.phase_type == WALKING else prob.options.dt_stance
+        if p.phase_type != WALKING and prob.options.dt_carry_stance and any(
+                mo.mode == "free" for mo in p.objects.values()):
+            dt = prob.options.dt_carry_stance
         n = max(1, int(math.ceil((p.end - p.start) / dt - 1e-9)))
         for k in range(n):
             ts.append(p.start + (p.end - p.start) * k / n)
@@ -1009,7 +1013,9 @@ class ProblemData:
             col[P[f"o{j}_att_sel"]] = sel
             col[P[f"o{j}_att_off"]] = self._attach_offset(k, oid, mo.attached_to)
         col[P[f"o{j}_w_reg"]] = self.w["w_obj_reg"]
-        col[P[f"o{j}_w_acc"]] = self.w["w_obj_acc"] if mode in ("supported", "rolling") else 0.0
+        col[P[f"o{j}_w_acc"]] = (self.w["w_obj_acc"] if mode in ("supported", "rolling")
+                                 else self.w["w_carry_acc"] if mode == "free" else 0.0)
+        col[P[f"o{j}_w_aacc"]] = self.w["w_carry_aacc"] if mode == "free" else 0.0
         for g in self.prob.placement_goals:
             if g.object_id != oid:
                 continue

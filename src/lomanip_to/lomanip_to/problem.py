@@ -20,7 +20,13 @@ Simplifications (named):
 
 from __future__ import annotations
 
+import ctypes
+import io
 import math
+import os
+import sys
+import tempfile
+from contextlib import contextmanager, redirect_stdout
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -235,6 +241,8 @@ class Options:
     #: knot spacing targets (s) for stance and walking phases (phase-wise sizing)
     dt_stance: float = 0.2
     dt_walking: float = 0.1
+    #: knot spacing (s) of a stance phase in which an object is carried (a lift, a put-down); 0 = dt_stance
+    dt_carry_stance: float = 0.0
     tol: float = 1e-4
     constr_tol: float = 1e-4
     time_limit: float = 600.0
@@ -353,6 +361,77 @@ def _finite(arr, n: int | None, where: str) -> np.ndarray:
     return a
 
 
+#: ipopt options a request cannot set: Options.max_iterations and time_limit set the first three,
+#: and MUMPS is the only linear solver installed
+RESERVED_IPOPT_OPTIONS = ("max_iter", "max_wall_time", "max_cpu_time", "linear_solver")
+
+
+def parse_option_value(text: str):
+    """A solver option's text value as ipopt wants it: int, else float, else the string."""
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
+_IPOPT_CHECKED: dict = {}
+_LIBC = ctypes.CDLL(None)
+
+
+@contextmanager
+def _captured_stdout():
+    """Capture what is printed inside the block into the yielded list of lines: CasADi hands
+    ipopt's messages to Python's sys.stdout, C code would write to file descriptor 1."""
+    lines: list = []
+    sys.stdout.flush()
+    saved = os.dup(1)
+    buf = io.StringIO()
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        os.dup2(tmp.fileno(), 1)
+        try:
+            with redirect_stdout(buf):
+                yield lines
+        finally:
+            _LIBC.fflush(None)  # C's stdout is block-buffered when it is not a terminal
+            os.dup2(saved, 1)
+            os.close(saved)
+            tmp.seek(0)
+            lines.extend(buf.getvalue().splitlines() + tmp.read().decode(errors="replace").splitlines())
+
+
+def check_ipopt_options(opts: dict) -> None:
+    """Raise INVALID_REQUEST unless ipopt accepts every option (name and value).
+
+    Why: ipopt only reads its options when a solver is built, minutes into a long request; here a
+    one-variable NLP is built with them (milliseconds; each set is checked once per process)."""
+    if not opts:
+        return
+    reserved = sorted(set(opts) & set(RESERVED_IPOPT_OPTIONS))
+    if reserved:
+        raise ProblemError(INVALID_REQUEST, f"options.solver_options: {', '.join(reserved)} cannot be set here "
+                                            "(max_iterations and time_limit set the iteration and time limits; "
+                                            "MUMPS is the only linear solver)", "options")
+    key = tuple(sorted((str(k), repr(v)) for k, v in opts.items()))
+    if key not in _IPOPT_CHECKED:
+        import casadi as ca
+
+        x = ca.MX.sym("x")
+        with _captured_stdout() as printed:
+            try:
+                ca.nlpsol("option_check", "ipopt", {"x": x, "f": x * x},
+                          {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", **opts}})
+                _IPOPT_CHECKED[key] = ""
+            except RuntimeError as exc:
+                _IPOPT_CHECKED[key] = str(exc).strip().splitlines()[-1].split(": ", 1)[-1]
+        if _IPOPT_CHECKED[key]:  # ipopt says what is wrong with a value on stdout, not in the exception
+            said = [ln.strip() for ln in printed if ln.startswith("Setting:")]
+            _IPOPT_CHECKED[key] = f"options.solver_options {opts} rejected by ipopt: {(said or [_IPOPT_CHECKED[key]])[0]}"
+    if _IPOPT_CHECKED[key]:
+        raise ProblemError(INVALID_REQUEST, _IPOPT_CHECKED[key], "options")
+
+
 def validate_problem(prob: Problem, model=None) -> None:
     """Check a problem before solving; raise :class:`ProblemError` on the first defect."""
     for name in ("guide_hessian", "final_hessian"):
@@ -362,6 +441,7 @@ def validate_problem(prob: Problem, model=None) -> None:
     if prob.options.homotopy_form not in HOMOTOPY_FORMS:
         raise ProblemError(INVALID_REQUEST, f"options.homotopy_form must be one of {', '.join(HOMOTOPY_FORMS)}, "
                                             f"not {prob.options.homotopy_form!r}", "options")
+    check_ipopt_options(prob.options.ipopt)
     bad = [g for g in prob.options.inertial_torque_groups if g not in TORQUE_GROUPS]
     if bad:
         raise ProblemError(INVALID_REQUEST, f"options.inertial_torque_groups: unknown group(s) {', '.join(map(repr, bad))} "

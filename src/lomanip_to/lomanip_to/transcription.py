@@ -130,6 +130,7 @@ def par_layout(st: Structure) -> Layout:
         P.add(f"o{j}_goal", 4)
         P.add(f"o{j}_w_reg", 1)
         P.add(f"o{j}_w_acc", 1)
+        P.add(f"o{j}_w_aacc", 1)
     for i in range(len(st.obj_pairs)):
         P.add(f"c{i}_sel", st.n_obj + 1)
         P.add(f"c{i}_pose", 12)  # static world primitive: centre (3) + R (9, column-major)
@@ -395,6 +396,8 @@ class Window:
             # hands keep up, not one kick and a coast (the demo's plan: 23.5 N for 0.1 s, then the
             # hands only rode along; executed, the trolley got 7 cm of its 25 and the robot fell)
             cost += pp["w_stage"] * pp[f"o{j}_w_acc"] * ca.sumsqr((vb[0:3] - va[0:3]) / dt)
+            # a carried object turns smoothly too (its linear part is the row above)
+            cost += pp["w_stage"] * pp[f"o{j}_w_aacc"] * ca.sumsqr((vb[3:6] - va[3:6]) / dt)
             cost += pp["w_stage"] * pp["w_force"] * 0.1 * ca.sumsqr(wa[f"o{j}_us"])
 
         # ---- collisions: robot spheres vs object primitives
