@@ -34,3 +34,11 @@ def test_validate_problem_refuses_a_bad_option_before_solving(g1):
     with pytest.raises(ProblemError, match="perturb_always_cd") as ei:
         validate_problem(prob, g1)
     assert ei.value.code == INVALID_REQUEST
+
+
+def test_task_files_solver_options_become_options_ipopt():
+    from lomanip_to.fixtures import load_options
+
+    opt = load_options({"solver_options": {"perturb_always_cd": True, "tol": 1e-5}},
+                       load_options({"ipopt": {"mu_strategy": "monotone"}}))
+    assert opt.ipopt == {"mu_strategy": "monotone", "perturb_always_cd": "yes", "tol": 1e-5}

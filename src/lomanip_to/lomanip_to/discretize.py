@@ -49,9 +49,6 @@ def make_grid(prob: Problem) -> Grid:
     ts, ph = [], []
     for i, p in enumerate(prob.phases):
         dt = prob.options.dt_walking if p.phase_type == WALKING else prob.options.dt_stance
-        if p.phase_type != WALKING and prob.options.dt_carry_stance and any(
-                mo.mode == "free" for mo in p.objects.values()):
-            dt = prob.options.dt_carry_stance
         n = max(1, int(math.ceil((p.end - p.start) / dt - 1e-9)))
         for k in range(n):
             ts.append(p.start + (p.end - p.start) * k / n)
@@ -571,7 +568,7 @@ class ProblemData:
             ubg[Gl[name], k] = hi
 
         # ---------------- variable bounds
-        q_lo, q_hi = m.gait_q_bounds()
+        q_lo, q_hi = m.gait_q_bounds(opt.waist_yaw_range, np.asarray(self.x_init, float)[6:])
         knees = [m.joint_names.index(f"{s}_knee_joint") for s in ("left", "right")]
         bend_from = prob.phases[0].end if prob.phases else INF  # the start is measured (straight knees)
         for k in range(K):

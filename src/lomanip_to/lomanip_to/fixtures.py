@@ -49,6 +49,10 @@ def _subst(v, params):
 def load_options(d: dict | None, base: Options | None = None) -> Options:
     opt = copy.deepcopy(base) if base is not None else Options()
     for k, v in (d or {}).items():
+        if k == "solver_options":  # a task file's name for them (TrajectoryOptions.solver_options)
+            k, v = "ipopt", {n: ("yes" if x else "no") if isinstance(x, bool) else x for n, x in v.items()}
+        if k == "ipopt":
+            v = {**opt.ipopt, **v}
         if not hasattr(opt, k):
             raise ValueError(f"unknown TO option {k!r}")
         if k in ("collision_groups", "inertial_torque_groups"):

@@ -245,12 +245,18 @@ class G1Model:
         v[6:] = xd[6:]
         return v
 
-    def gait_q_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+    def gait_q_bounds(self, waist_yaw_range: float = 0.0, q_start=None) -> tuple[np.ndarray, np.ndarray]:
         """(lower, upper) joint bounds of the TO and its warm start: the G1's limits with the hip yaws
-        in ``HIP_YAW_GAIT_RANGE``."""
+        in ``HIP_YAW_GAIT_RANGE`` and, when ``waist_yaw_range`` > 0, the waist yaw within it (each
+        widened to hold ``q_start``, the measured start, if that is outside)."""
         lo, hi = self.q_lower.copy(), self.q_upper.copy()
-        for j in self.hip_yaw_indices:
-            lo[j], hi[j] = max(lo[j], -HIP_YAW_GAIT_RANGE), min(hi[j], HIP_YAW_GAIT_RANGE)
+        narrowed = [(j, HIP_YAW_GAIT_RANGE) for j in self.hip_yaw_indices]
+        if waist_yaw_range > 0:
+            narrowed.append((list(self.joint_names).index("waist_yaw_joint"), waist_yaw_range))
+        for j, r in narrowed:
+            lo[j], hi[j] = max(lo[j], -r), min(hi[j], r)
+            if q_start is not None:
+                lo[j], hi[j] = min(lo[j], q_start[j]), max(hi[j], q_start[j])
         return lo, hi
 
     def v_to_xd(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -241,8 +241,6 @@ class Options:
     #: knot spacing targets (s) for stance and walking phases (phase-wise sizing)
     dt_stance: float = 0.2
     dt_walking: float = 0.1
-    #: knot spacing (s) of a stance phase in which an object is carried (a lift, a put-down); 0 = dt_stance
-    dt_carry_stance: float = 0.0
     tol: float = 1e-4
     constr_tol: float = 1e-4
     time_limit: float = 600.0
@@ -277,6 +275,10 @@ class Options:
                                "right_thigh", "pelvis", "torso", "head", "left_hand", "right_hand",
                                "left_forearm", "right_forearm", "left_upper_arm", "right_upper_arm")
     self_collision: bool = True
+    #: rad: the waist yaw stays within +-this (0 = the G1's +-2.62). A posture choice, not a joint
+    #: limit: S1's carry turned the torso -2.2 rad and held the box over the shoulder (docs/to.md,
+    #: session 16)
+    waist_yaw_range: float = 0.0
     #: m: a stance foot on the floor stays inside this square round its foothold in the contact
     #: schedule (0 = anywhere on the floor). The footholds are only a guess otherwise: converged
     #: plans of the demo push moved a foot up to 29 cm, into stances 8.5 cm wide that left one foot
