@@ -88,7 +88,8 @@ def test_solver_options_become_solver_option_entries():
 
 
 def test_s1_task_asks_for_the_configuration_that_passed_its_checks():
-    """docs/to.md, session 15: perturb_always_cd and the arms' inertial torque rows."""
+    """docs/to.md, sessions 15-16: perturb_always_cd, the arms' inertial torque rows, the waist yaw range."""
     opts = load_task("s1_basket").options
     assert opts["solver_options"] == {"perturb_always_cd": "yes"}
     assert set(opts["inertial_torque_groups"]) == {"waist", "left_hand", "right_hand"}
+    assert opts["waist_yaw_range"] == 0.8

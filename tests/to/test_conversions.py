@@ -111,6 +111,18 @@ def test_options_round_trip_the_solver_options(model):
     assert conv.options_from_msg(req.options).ipopt == {"perturb_always_cd": "yes", "acceptable_iter": 5}
 
 
+def test_options_round_trip_the_waist_yaw_range(model):
+    from lomanip_msgs.msg import TrajectoryOptions
+    from lomanip_to.problem import Options
+
+    assert conv.options_from_msg(TrajectoryOptions()).waist_yaw_range == Options().waist_yaw_range == 0.0
+    prob = load_problem("case_one_step", model=model)
+    prob.options = prob.options.replaced(waist_yaw_range=0.8)
+    req = conv.request_from_problem(prob, model.joint_names)
+    assert conv.options_from_msg(req.options).waist_yaw_range == 0.8
+    assert conv.options_from_msg(TrajectoryOptions(waist_yaw_range=-1.0)).waist_yaw_range == 0.0
+
+
 def test_options_round_trip_the_single_support_com_lateral(model):
     """The message's default is the TO's; a task's tighter margin survives the trip; <= 0 is off."""
     from lomanip_msgs.msg import TrajectoryOptions

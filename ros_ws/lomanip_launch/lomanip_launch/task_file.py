@@ -25,7 +25,8 @@ TASKS_DIR = config_dir() / "tasks"
 _OPTION_FIELDS = {"use_keyframe_base_cost": bool, "use_keyframe_foot_cost": bool, "use_keyframe_warm_start": bool,
                   "collision_hard_constraint": bool, "collision_penalty": bool, "collision_homotopy": bool,
                   "max_iterations": int, "output_rate": float, "time_limit": float, "inertial_torque_groups": list,
-                  "single_support_com_lateral": float, "solver_options": dict}
+                  "single_support_com_lateral": float, "waist_yaw_range": float,
+                  "solver_options": dict}
 
 
 class TaskFileError(ValueError):

@@ -169,6 +169,7 @@ def options_from_msg(o: TrajectoryOptions, base: P.Options | None = None) -> P.O
         max_iterations=int(o.max_iterations), output_rate=float(o.output_rate), time_limit=float(o.time_limit),
         inertial_torque_groups=tuple(str(g) for g in o.inertial_torque_groups),
         single_support_com_lateral=float(o.single_support_com_lateral) if o.single_support_com_lateral > 0 else None,
+        waist_yaw_range=max(float(o.waist_yaw_range), 0.0),
         ipopt={**(base.ipopt if base is not None else {}),
                **{str(kv.name): P.parse_option_value(str(kv.value)) for kv in o.solver_options}})
 
@@ -365,6 +366,7 @@ def request_from_problem(prob: P.Problem, joint_names):
         max_iterations=int(o.max_iterations), output_rate=float(o.output_rate), time_limit=float(o.time_limit),
         inertial_torque_groups=list(o.inertial_torque_groups),
         single_support_com_lateral=float(o.single_support_com_lateral or 0.0),
+        waist_yaw_range=float(o.waist_yaw_range),
         solver_options=[SolverOption(name=str(k), value=str(v)) for k, v in (o.ipopt or {}).items()])
     if prob.initial_configuration is not None:
         x0 = np.asarray(prob.initial_configuration, float)
