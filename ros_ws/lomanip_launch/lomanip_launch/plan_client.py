@@ -37,13 +37,6 @@ class PlanOutcome:
         return self.status == GoalStatus.STATUS_SUCCEEDED and self.result.error_code.val == ErrorCode.SUCCESS
 
 
-def _option_text(value) -> str:
-    """A task file's solver option as the message's text (YAML reads ipopt's yes/no as booleans)."""
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    return str(value)
-
-
 def goal_from_task(task: Task, execute: bool = False) -> Plan.Goal:
     goal = Plan.Goal()
     goal.prompts = list(task.prompts)
@@ -55,7 +48,7 @@ def goal_from_task(task: Task, execute: bool = False) -> Plan.Goal:
     options = TrajectoryOptions()
     for key, value in task.options.items():
         if key == "solver_options":
-            options.solver_options = [SolverOption(name=k, value=_option_text(v)) for k, v in value.items()]
+            options.solver_options = [SolverOption(name=k, value=v) for k, v in value.items()]
         else:
             setattr(options, key, type(getattr(options, key))(value))
     goal.options = options

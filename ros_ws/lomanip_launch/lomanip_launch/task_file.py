@@ -98,7 +98,11 @@ def task_from_dict(data: dict, where: str = "task") -> Task:
         if key == "solver_options" and not all(isinstance(k, str) and isinstance(v, (str, int, float, bool))
                                                for k, v in value.items()):
             raise TaskFileError(f"{where}: option solver_options must map ipopt option names to numbers or strings")
-    return Task(scenario, [p.strip() for p in prompts], dict(overrides), goals, dict(options))
+    options = dict(options)
+    if "solver_options" in options:  # as the message's text; YAML reads ipopt's yes/no as booleans
+        options["solver_options"] = {k: ("yes" if v else "no") if isinstance(v, bool) else str(v)
+                                     for k, v in options["solver_options"].items()}
+    return Task(scenario, [p.strip() for p in prompts], dict(overrides), goals, options)
 
 
 def _placement(entry, where: str) -> Placement:

@@ -568,7 +568,7 @@ class ProblemData:
             ubg[Gl[name], k] = hi
 
         # ---------------- variable bounds
-        q_lo, q_hi = m.gait_q_bounds(opt.waist_yaw_range, np.asarray(self.x_init, float)[6:])
+        q_lo, q_hi = m.gait_q_bounds(opt.waist_yaw_range, self.x_init[6:])
         knees = [m.joint_names.index(f"{s}_knee_joint") for s in ("left", "right")]
         bend_from = prob.phases[0].end if prob.phases else INF  # the start is measured (straight knees)
         for k in range(K):

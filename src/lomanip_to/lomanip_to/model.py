@@ -252,7 +252,7 @@ class G1Model:
         lo, hi = self.q_lower.copy(), self.q_upper.copy()
         narrowed = [(j, HIP_YAW_GAIT_RANGE) for j in self.hip_yaw_indices]
         if waist_yaw_range > 0:
-            narrowed.append((list(self.joint_names).index("waist_yaw_joint"), waist_yaw_range))
+            narrowed.append((self.joint_names.index("waist_yaw_joint"), waist_yaw_range))
         for j, r in narrowed:
             lo[j], hi[j] = max(lo[j], -r), min(hi[j], r)
             if q_start is not None:

@@ -20,13 +20,9 @@ Simplifications (named):
 
 from __future__ import annotations
 
-import ctypes
 import io
 import math
-import os
-import sys
-import tempfile
-from contextlib import contextmanager, redirect_stdout
+from contextlib import redirect_stdout
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -379,28 +375,6 @@ def parse_option_value(text: str):
 
 
 _IPOPT_CHECKED: dict = {}
-_LIBC = ctypes.CDLL(None)
-
-
-@contextmanager
-def _captured_stdout():
-    """Capture what is printed inside the block into the yielded list of lines: CasADi hands
-    ipopt's messages to Python's sys.stdout, C code would write to file descriptor 1."""
-    lines: list = []
-    sys.stdout.flush()
-    saved = os.dup(1)
-    buf = io.StringIO()
-    with tempfile.TemporaryFile(mode="w+b") as tmp:
-        os.dup2(tmp.fileno(), 1)
-        try:
-            with redirect_stdout(buf):
-                yield lines
-        finally:
-            _LIBC.fflush(None)  # C's stdout is block-buffered when it is not a terminal
-            os.dup2(saved, 1)
-            os.close(saved)
-            tmp.seek(0)
-            lines.extend(buf.getvalue().splitlines() + tmp.read().decode(errors="replace").splitlines())
 
 
 def check_ipopt_options(opts: dict) -> None:
@@ -420,7 +394,8 @@ def check_ipopt_options(opts: dict) -> None:
         import casadi as ca
 
         x = ca.MX.sym("x")
-        with _captured_stdout() as printed:
+        printed = io.StringIO()  # CasADi hands ipopt's messages to Python's sys.stdout
+        with redirect_stdout(printed):
             try:
                 ca.nlpsol("option_check", "ipopt", {"x": x, "f": x * x},
                           {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", **opts}})
@@ -428,7 +403,7 @@ def check_ipopt_options(opts: dict) -> None:
             except RuntimeError as exc:
                 _IPOPT_CHECKED[key] = str(exc).strip().splitlines()[-1].split(": ", 1)[-1]
         if _IPOPT_CHECKED[key]:  # ipopt says what is wrong with a value on stdout, not in the exception
-            said = [ln.strip() for ln in printed if ln.startswith("Setting:")]
+            said = [ln.strip() for ln in printed.getvalue().splitlines() if ln.startswith("Setting:")]
             _IPOPT_CHECKED[key] = f"options.solver_options {opts} rejected by ipopt: {(said or [_IPOPT_CHECKED[key]])[0]}"
     if _IPOPT_CHECKED[key]:
         raise ProblemError(INVALID_REQUEST, _IPOPT_CHECKED[key], "options")

@@ -267,7 +267,7 @@ def stepping_guess(data, x_nom: np.ndarray) -> np.ndarray:
     prims = fixed_primitives(data, x_nom)
     ik = _tracking_ik(model, len(prims) // 15)
     # the TO's joint bounds (hip yaw in its gait range, the waist yaw in Options.waist_yaw_range)
-    q_lo, q_hi = model.gait_q_bounds(data.prob.options.waist_yaw_range, np.asarray(data.x_init, float)[6:])
+    q_lo, q_hi = model.gait_q_bounds(data.prob.options.waist_yaw_range, data.x_init[6:])
     lbx = np.concatenate([np.full(3, -np.inf), [-0.6, -0.6, -np.inf], q_lo])
     ubx = np.concatenate([np.full(3, np.inf), [0.6, 0.6, np.inf], q_hi])
     X = np.array(x_nom, float)
