@@ -29,6 +29,7 @@ DEFAULT_WEIGHTS = {
     "w_kff": 5e2, "w_wk_base": 20.0, "w_upright": 20.0, "w_anchor": 10.0, "w_kfb_z": 100.0,
     "w_kfb_th": 10.0, "w_slack": 1e2, "w_self": 1e3, "w_swing": 2e3, "swing_clearance": 0.06,
     "w_pen": 1e4, "w_hom": 1e2, "w_obj_reg": 1.0, "w_obj_acc": 20.0, "w_carry_acc": 0.0, "w_carry_aacc": 0.0,
+    "w_carry_pose": 0.0,
     "w_goal": 1e3,
     "mu_foot": 0.6, "mu_hand": 0.8, "mu_obj": 0.5, "self_margin": 0.0,
     "pair_prefilter": 0.25,
@@ -1013,6 +1014,9 @@ class ProblemData:
         col[P[f"o{j}_w_acc"]] = (self.w["w_obj_acc"] if mode in ("supported", "rolling")
                                  else self.w["w_carry_acc"] if mode == "free" else 0.0)
         col[P[f"o{j}_w_aacc"]] = self.w["w_carry_aacc"] if mode == "free" else 0.0
+        if mode == "free":
+            col[P[f"o{j}_w_pose"]] = self.w["w_carry_pose"]
+            col[P[f"o{j}_yaw_rel"]] = math.remainder(self.obj_nom[oid][k][5] - self.x_guess[k][5], 2 * math.pi)
         for g in self.prob.placement_goals:
             if g.object_id != oid:
                 continue

@@ -131,6 +131,8 @@ def par_layout(st: Structure) -> Layout:
         P.add(f"o{j}_w_reg", 1)
         P.add(f"o{j}_w_acc", 1)
         P.add(f"o{j}_w_aacc", 1)
+        P.add(f"o{j}_w_pose", 1)
+        P.add(f"o{j}_yaw_rel", 1)
     for i in range(len(st.obj_pairs)):
         P.add(f"c{i}_sel", st.n_obj + 1)
         P.add(f"c{i}_pose", 12)  # static world primitive: centre (3) + R (9, column-major)
@@ -398,6 +400,11 @@ class Window:
             cost += pp["w_stage"] * pp[f"o{j}_w_acc"] * ca.sumsqr((vb[0:3] - va[0:3]) / dt)
             # a carried object turns smoothly too (its linear part is the row above)
             cost += pp["w_stage"] * pp[f"o{j}_w_aacc"] * ca.sumsqr((vb[3:6] - va[3:6]) / dt)
+            # a carried object stays level and keeps its yaw relative to the base (the nominal's,
+            # blended from the grasp to the placement): the way a person carries a box.  Without it
+            # S1's plans yawed the box 0.58 rad in 0.2 s in the lift and the executed hands lost it
+            cost += pp["w_stage"] * pp[f"o{j}_w_pose"] * (
+                rpya[0] ** 2 + rpya[1] ** 2 + 2 * (1 - ca.cos(rpya[2] - wa["x"][5] - pp[f"o{j}_yaw_rel"])))
             cost += pp["w_stage"] * pp["w_force"] * 0.1 * ca.sumsqr(wa[f"o{j}_us"])
 
         # ---- collisions: robot spheres vs object primitives
