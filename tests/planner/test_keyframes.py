@@ -69,3 +69,27 @@ def test_hand_on_an_unknown_object_is_reported():
     bad[0].contacts[2] = LimbTarget("left_hand", np.array([0.7, 0.2, 0.2]), np.array([0, 1.0, 0]), "refrigerator")
     with pytest.raises(RetargetingError, match="refrigerator"):
         retarget_subtasks(bad, OBJECTS, Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0])), Retargeter())
+
+
+def test_s1_carried_box_nominal_is_set_down_at_its_goal_not_under_the_floor():
+    """The TO's nominal for the generated S1: the carry's blend ends at the knot where the box is set
+    down, not where the robot has stood up again (before: the box went 0.3 m under the floor before
+    its placement, and the warm start's IK rolled the base 0.6 rad reaching for it)."""
+    from lomanip_to.discretize import ProblemData
+    from lomanip_to.solver import default_model
+
+    stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+    placements = {"box": PlacementGoal("box", (1.48, 1.0, 0.15), 0.0)}
+    kfs = retarget_subtasks(_s1_perception(), OBJECTS, stance, Retargeter(), placements)
+    x0 = [0, 0, 0.79, 0, 0, 0] + [0.0] * 29
+    problem, _ = build_problem(OBJECTS, kfs, stance, x0, name="s1_basket")
+    data = ProblemData(problem, default_model())
+    box = data.obj_nom["box"]
+    modes = [data.obj_mode(k, "box") for k in range(data.grid.K)]
+    assert box[:, 2].min() > 0.15 - 1e-4, f"box nominal at {box[:, 2].min():.2f} m"
+    k_set = [k for k in range(1, data.grid.K) if modes[k - 1] == "free" and modes[k] == "supported"]
+    assert len(k_set) == 1
+    np.testing.assert_allclose(box[k_set[0], :3], (1.48, 1.0, 0.15), atol=1e-6)
+    walking = [k for k in range(data.grid.K)
+               if modes[k] == "free" and data.prob.phases[data.grid.phase[k]].phase_type == "walking"]
+    assert walking and np.median(box[walking, 2]) > 0.5   # carried, not dragged along the floor
