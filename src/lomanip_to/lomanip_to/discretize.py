@@ -184,6 +184,7 @@ class ProblemData:
         prob = self.prob
         K = self.grid.K
         self.obj_nom = {}
+        self.carry_yaw_rel = {}  # object -> (K,) its nominal yaw relative to the base while held (nan: not)
         self.support_poses = {}  # see use_solved_support_poses
         goals = {g.object_id: g for g in prob.placement_goals}
         for oid in self.moving:
@@ -262,6 +263,7 @@ class ProblemData:
                 for k in range(k0 + 1, k_end):
                     s = (t[k] - t[k0]) / (t[k1] - t[k0])
                     pose = _from_base(X[k], (1 - s) * rel0 + s * rel1)
+                    self.carry_yaw_rel.setdefault(oid, np.full(self.grid.K, np.nan))[k] = pose[5] - X[k, 5]
                     if self.obj_mode(k, oid) in ("supported", "rolling"):
                         pose[[2, 3, 4]] = traj[k, [2, 3, 4]]
                     traj[k] = pose
@@ -1035,7 +1037,10 @@ class ProblemData:
         col[P[f"o{j}_w_aacc"]] = self.w["w_carry_aacc"] if mode == "free" else 0.0
         if mode == "free":
             col[P[f"o{j}_w_pose"]] = self.w["w_carry_pose"]
-            col[P[f"o{j}_yaw_rel"]] = math.remainder(self.obj_nom[oid][k][5] - self.x_guess[k][5], 2 * math.pi)
+            # the blend's own relative yaw: the stepping guess's base yaw swings with each step
+            rel = self.carry_yaw_rel.get(oid)
+            yaw_rel = rel[k] if rel is not None and np.isfinite(rel[k]) else self.obj_nom[oid][k][5] - self.x_guess[k][5]
+            col[P[f"o{j}_yaw_rel"]] = math.remainder(yaw_rel, 2 * math.pi)
         for g in self.prob.placement_goals:
             if g.object_id != oid:
                 continue
