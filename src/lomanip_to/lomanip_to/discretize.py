@@ -248,7 +248,8 @@ class ProblemData:
                 # went 0.3 m under the floor before its placement and the warm start's IK, pulled
                 # there by the hands, rolled the base 0.6 rad (session 17)
                 free = [k for k in range(k0, k1 + 1) if self.obj_mode(k, oid) == "free"]
-                if free and free[-1] + 1 < k1:
+                if free and free[-1] + 1 < k1 and all(self.obj_mode(k, oid) in ("supported", "fixed")
+                                                      for k in range(free[-1] + 1, k1 + 1)):
                     k_set = free[-1] + 1
                     traj[k_set:k1 + 1] = traj[k1]
                     k1 = k_set
