@@ -29,7 +29,7 @@ DEFAULT_WEIGHTS = {
     "w_kff": 5e2, "w_wk_base": 20.0, "w_upright": 20.0, "w_anchor": 10.0, "w_kfb_z": 100.0,
     "w_kfb_th": 10.0, "w_slack": 1e2, "w_self": 1e3, "w_swing": 2e3, "swing_clearance": 0.06,
     "w_pen": 1e4, "w_hom": 1e2, "w_obj_reg": 1.0, "w_obj_acc": 20.0, "w_carry_acc": 0.0, "w_carry_aacc": 0.0,
-    "w_carry_pose": 0.0,
+    "w_carry_pose": 0.0, "w_carry_offset": 0.0,
     "w_goal": 1e3,
     "mu_foot": 0.6, "mu_hand": 0.8, "mu_obj": 0.5, "self_margin": 0.0,
     "pair_prefilter": 0.25,
@@ -184,7 +184,7 @@ class ProblemData:
         prob = self.prob
         K = self.grid.K
         self.obj_nom = {}
-        self.carry_yaw_rel = {}  # object -> (K,) its nominal yaw relative to the base while held (nan: not)
+        self.carry_rel = {}  # object -> (K, 6) its nominal pose relative to the base while held (nan: not)
         self.support_poses = {}  # see use_solved_support_poses
         goals = {g.object_id: g for g in prob.placement_goals}
         for oid in self.moving:
@@ -263,8 +263,9 @@ class ProblemData:
                 rel1[5] = rel0[5] + math.remainder(rel1[5] - rel0[5], 2 * math.pi)
                 for k in range(k0 + 1, k_end):
                     s = (t[k] - t[k0]) / (t[k1] - t[k0])
-                    pose = _from_base(X[k], (1 - s) * rel0 + s * rel1)
-                    self.carry_yaw_rel.setdefault(oid, np.full(self.grid.K, np.nan))[k] = pose[5] - X[k, 5]
+                    rel = (1 - s) * rel0 + s * rel1
+                    pose = _from_base(X[k], rel)
+                    self.carry_rel.setdefault(oid, np.full((self.grid.K, 6), np.nan))[k] = rel
                     if self.obj_mode(k, oid) in ("supported", "rolling"):
                         pose[[2, 3, 4]] = traj[k, [2, 3, 4]]
                     traj[k] = pose
@@ -1039,9 +1040,13 @@ class ProblemData:
         if mode == "free":
             col[P[f"o{j}_w_pose"]] = self.w["w_carry_pose"]
             # the blend's own relative yaw: the stepping guess's base yaw swings with each step
-            rel = self.carry_yaw_rel.get(oid)
-            yaw_rel = rel[k] if rel is not None and np.isfinite(rel[k]) else self.obj_nom[oid][k][5] - self.x_guess[k][5]
-            col[P[f"o{j}_yaw_rel"]] = math.remainder(yaw_rel, 2 * math.pi)
+            rel = self.carry_rel.get(oid)
+            if rel is not None and np.all(np.isfinite(rel[k])):
+                col[P[f"o{j}_yaw_rel"]] = math.remainder(rel[k][5], 2 * math.pi)
+                col[P[f"o{j}_w_offset"]] = self.w["w_carry_offset"]
+                col[P[f"o{j}_offset"]] = rel[k][1:3]
+            else:  # not on a blended carry (no keyframe warm start): the guess's relative yaw
+                col[P[f"o{j}_yaw_rel"]] = math.remainder(self.obj_nom[oid][k][5] - self.x_guess[k][5], 2 * math.pi)
         for g in self.prob.placement_goals:
             if g.object_id != oid:
                 continue

@@ -133,6 +133,8 @@ def par_layout(st: Structure) -> Layout:
         P.add(f"o{j}_w_aacc", 1)
         P.add(f"o{j}_w_pose", 1)
         P.add(f"o{j}_yaw_rel", 1)
+        P.add(f"o{j}_w_offset", 1)
+        P.add(f"o{j}_offset", 2)  # lateral and vertical offset from the base (base-yaw frame)
     for i in range(len(st.obj_pairs)):
         P.add(f"c{i}_sel", st.n_obj + 1)
         P.add(f"c{i}_pose", 12)  # static world primitive: centre (3) + R (9, column-major)
@@ -405,6 +407,12 @@ class Window:
             # S1's plans yawed the box 0.58 rad in 0.2 s in the lift and the executed hands lost it
             cost += pp["w_stage"] * pp[f"o{j}_w_pose"] * (
                 rpya[0] ** 2 + rpya[1] ** 2 + 2 * (1 - ca.cos(rpya[2] - wa["x"][5] - pp[f"o{j}_yaw_rel"])))
+            # ... and stays at the nominal's height and lateral offset from the base (the distance in
+            # front is the solver's): no swing of the box across the body, no carry above the head
+            cy, sy = ca.cos(wa["x"][5]), ca.sin(wa["x"][5])
+            d = pa - wa["x"][0:3]
+            cost += pp["w_stage"] * pp[f"o{j}_w_offset"] * ca.sumsqr(
+                ca.vertcat(-sy * d[0] + cy * d[1], d[2]) - pp[f"o{j}_offset"])
             cost += pp["w_stage"] * pp["w_force"] * 0.1 * ca.sumsqr(wa[f"o{j}_us"])
 
         # ---- collisions: robot spheres vs object primitives
