@@ -120,12 +120,6 @@ WHEEL_ROLLING_RESISTANCE = 1.5
 #: S1's plans tilted the box 0.3-0.7 rad while carrying it; a two-hand friction grasp under physics
 #: then let it pivot about the axis between the hands and slide out (docs/execution.md, session 5)
 CARRY_TILT = 0.25
-#: largest vertical speed (m/s) and roll/pitch/yaw rates (rad/s) of a carried object, also carrying
-#: choices. Why: with the 0.2 s knots' explicit Euler step a 0.7 N m imbalance of the hands' forces
-#: yawed S1's 2.5 kg box 0.54 rad in one knot and its lift reached 1.6 m/s; executed, a two-hand
-#: friction grasp could not follow and the box fell out of the hands (docs/execution.md, session 17)
-CARRY_VERTICAL_SPEED = 0.6
-CARRY_TURN_RATE = 1.0
 #: time (s) the nominal takes to stand up after the hands let go at the end of a task or segment
 STAND_UP_TIME = 1.0
 
@@ -629,9 +623,6 @@ class ProblemData:
                 lift_off = mode == "free" and prev in ("supported", "rolling")
                 if mode == "fixed" or prev == "fixed" or k == 0 or lift_off or self._left_alone(k, oid):
                     setb(f"o{j}_vel", k, 0, 0)
-                elif mode == "free":  # carried: a person's lift and turn rates (CARRY_VERTICAL_SPEED)
-                    lim = np.array([3.0, 3.0, CARRY_VERTICAL_SPEED] + [CARRY_TURN_RATE] * 3)
-                    setb(f"o{j}_vel", k, -lim, lim)
                 else:
                     setb(f"o{j}_vel", k, -3, 3)
                 if mode in ("supported", "rolling"):
