@@ -33,6 +33,8 @@ def test_missing_file_lists_shipped_tasks(tmp_path):
     ({"scenario": "s1_basket", "prompts": ["a"], "options": {"inertial_torque_groups": [1]}}, "list of group names"),
     ({"scenario": "s1_basket", "prompts": ["a"], "options": {"solver_options": ["tol"]}}, "must be dict"),
     ({"scenario": "s1_basket", "prompts": ["a"], "options": {"solver_options": {"tol": [1]}}}, "ipopt option names"),
+    ({"scenario": "s1_basket", "prompts": ["a"], "options": {"weights": {"w_goal": "big"}}}, "cost weight names to numbers"),
+    ({"scenario": "s1_basket", "prompts": ["a"], "options": {"weights": [1.0]}}, "must be dict"),
     ({"scenario": "s1_basket", "prompts": ["a"], "colour": "red"}, "unknown field"),
 ])
 def test_bad_tasks_are_rejected_with_a_reason(data, match):
@@ -71,7 +73,7 @@ def test_task_options_reach_the_trajectory_options_message():
     assert list(msg.inertial_torque_groups) == ["waist"]  # the TO's default (lomanip_to.problem.Options)
     assert msg.single_support_com_lateral == 0.08  # likewise
     for key, kind in _OPTION_FIELDS.items():
-        if key == "solver_options":  # a mapping in YAML, SolverOption[] in the message
+        if key in ("solver_options", "weights"):  # mappings in YAML, SolverOption[] / CostWeight[] in the message
             assert list(getattr(msg, key)) == []
             continue
         assert isinstance(getattr(msg, key), kind), key
@@ -87,9 +89,19 @@ def test_solver_options_become_solver_option_entries():
     assert entries == {"perturb_always_cd": "yes", "tol": "1e-05", "mu_strategy": "monotone"}
 
 
+def test_weights_become_cost_weight_entries():
+    from lomanip_launch.plan_client import goal_from_task
+
+    task = task_from_dict({"scenario": "s1_basket", "prompts": ["a"], "options": {"weights": {"w_carry_pose": 500}}})
+    assert task.options["weights"] == {"w_carry_pose": 500.0}
+    entries = {w.name: w.value for w in goal_from_task(task).options.weights}
+    assert entries == {"w_carry_pose": 500.0}
+
+
 def test_s1_task_asks_for_the_configuration_that_passed_its_checks():
     """docs/to.md, sessions 15-16: perturb_always_cd, the arms' inertial torque rows, the waist yaw range."""
     opts = load_task("s1_basket").options
     assert opts["solver_options"] == {"perturb_always_cd": "yes"}
     assert set(opts["inertial_torque_groups"]) == {"waist", "left_hand", "right_hand"}
     assert opts["waist_yaw_range"] == 0.8
+    assert opts["weights"] == {"w_carry_pose": 500.0}  # session 17

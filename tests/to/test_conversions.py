@@ -111,6 +111,21 @@ def test_options_round_trip_the_solver_options(model):
     assert conv.options_from_msg(req.options).ipopt == {"perturb_always_cd": "yes", "acceptable_iter": 5}
 
 
+def test_options_round_trip_the_cost_weights(model):
+    """Request weights go over the node's own; a problem's weights travel in its request."""
+    from lomanip_msgs.msg import CostWeight, TrajectoryOptions
+    from lomanip_to.problem import Options
+
+    msg = TrajectoryOptions(weights=[CostWeight(name="w_carry_pose", value=500.0)])
+    base = Options(weights={"w_goal": 2e3, "w_carry_pose": 1.0})
+    assert conv.options_from_msg(msg, base).weights == {"w_goal": 2e3, "w_carry_pose": 500.0}
+    assert conv.options_from_msg(TrajectoryOptions()).weights == {}
+    prob = load_problem("case_one_step", model=model)
+    prob.options = prob.options.replaced(weights={"w_carry_pose": 500.0})
+    req = conv.request_from_problem(prob, model.joint_names)
+    assert conv.options_from_msg(req.options).weights == {"w_carry_pose": 500.0}
+
+
 def test_options_round_trip_the_waist_yaw_range(model):
     from lomanip_msgs.msg import TrajectoryOptions
     from lomanip_to.problem import Options

@@ -17,7 +17,7 @@ from rclpy.node import Node
 
 from lomanip_launch.task_file import Task
 from lomanip_msgs.action import Plan
-from lomanip_msgs.msg import ErrorCode, PlacementGoal, ScenarioParameters, SolverOption, TrajectoryOptions
+from lomanip_msgs.msg import CostWeight, ErrorCode, PlacementGoal, ScenarioParameters, SolverOption, TrajectoryOptions
 
 import yaml
 
@@ -49,6 +49,8 @@ def goal_from_task(task: Task, execute: bool = False) -> Plan.Goal:
     for key, value in task.options.items():
         if key == "solver_options":
             options.solver_options = [SolverOption(name=k, value=v) for k, v in value.items()]
+        elif key == "weights":
+            options.weights = [CostWeight(name=k, value=float(v)) for k, v in value.items()]
         else:
             setattr(options, key, type(getattr(options, key))(value))
     goal.options = options

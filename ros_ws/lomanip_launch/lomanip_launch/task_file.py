@@ -7,7 +7,8 @@
       - {object: box, position: [1.0, 0.4, 0.15], yaw: 0.0}
     options: {max_iterations: 500}       # optional lomanip_msgs/TrajectoryOptions fields;
                                          # solver_options as a mapping {ipopt name: value}
-                                         # (YAML's yes/no booleans are ipopt's "yes"/"no")
+                                         # (YAML's yes/no booleans are ipopt's "yes"/"no");
+                                         # weights as a mapping {TO cost weight name: number}
 
 No rclpy here: the file is validated into a plain :class:`Task`; ``plan_client`` turns it into a goal.
 """
@@ -26,7 +27,7 @@ _OPTION_FIELDS = {"use_keyframe_base_cost": bool, "use_keyframe_foot_cost": bool
                   "collision_hard_constraint": bool, "collision_penalty": bool, "collision_homotopy": bool,
                   "max_iterations": int, "output_rate": float, "time_limit": float, "inertial_torque_groups": list,
                   "single_support_com_lateral": float, "waist_yaw_range": float,
-                  "solver_options": dict}
+                  "solver_options": dict, "weights": dict}
 
 
 class TaskFileError(ValueError):
@@ -98,7 +99,12 @@ def task_from_dict(data: dict, where: str = "task") -> Task:
         if key == "solver_options" and not all(isinstance(k, str) and isinstance(v, (str, int, float, bool))
                                                for k, v in value.items()):
             raise TaskFileError(f"{where}: option solver_options must map ipopt option names to numbers or strings")
+        if key == "weights" and not all(isinstance(k, str) and isinstance(v, (int, float)) and not isinstance(v, bool)
+                                        for k, v in value.items()):
+            raise TaskFileError(f"{where}: option weights must map TO cost weight names to numbers")
     options = dict(options)
+    if "weights" in options:
+        options["weights"] = {k: float(v) for k, v in options["weights"].items()}
     if "solver_options" in options:  # as the message's text; YAML reads ipopt's yes/no as booleans
         options["solver_options"] = {k: ("yes" if v else "no") if isinstance(v, bool) else str(v)
                                      for k, v in options["solver_options"].items()}

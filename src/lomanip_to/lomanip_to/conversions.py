@@ -21,7 +21,7 @@ from shape_msgs.msg import SolidPrimitive
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint, MultiDOFJointTrajectory, \
     MultiDOFJointTrajectoryPoint
 
-from lomanip_msgs.msg import (ContactPhase as ContactPhaseMsg, ContactWrench, KnotWrenches, ObjectMotion as
+from lomanip_msgs.msg import (ContactPhase as ContactPhaseMsg, ContactWrench, CostWeight, KnotWrenches, ObjectMotion as
                               ObjectMotionMsg, ObjectTrajectory, SolverOption, SolverStatistics, TrajectoryOptions,
                               WholeBodyTrajectory)
 
@@ -171,7 +171,8 @@ def options_from_msg(o: TrajectoryOptions, base: P.Options | None = None) -> P.O
         single_support_com_lateral=float(o.single_support_com_lateral) if o.single_support_com_lateral > 0 else None,
         waist_yaw_range=max(float(o.waist_yaw_range), 0.0),
         ipopt={**(base.ipopt if base is not None else {}),
-               **{str(kv.name): P.parse_option_value(str(kv.value)) for kv in o.solver_options}})
+               **{str(kv.name): P.parse_option_value(str(kv.value)) for kv in o.solver_options}},
+        weights={**(base.weights if base is not None else {}), **{str(w.name): float(w.value) for w in o.weights}})
 
 
 def initial_configuration(joints, base_pose: Pose, keyframes: list[P.Keyframe], joint_names) -> tuple:
@@ -367,7 +368,8 @@ def request_from_problem(prob: P.Problem, joint_names):
         inertial_torque_groups=list(o.inertial_torque_groups),
         single_support_com_lateral=float(o.single_support_com_lateral or 0.0),
         waist_yaw_range=float(o.waist_yaw_range),
-        solver_options=[SolverOption(name=str(k), value=str(v)) for k, v in (o.ipopt or {}).items()])
+        solver_options=[SolverOption(name=str(k), value=str(v)) for k, v in (o.ipopt or {}).items()],
+        weights=[CostWeight(name=str(k), value=float(v)) for k, v in (o.weights or {}).items()])
     if prob.initial_configuration is not None:
         x0 = np.asarray(prob.initial_configuration, float)
         req.initial_base_pose = Pose(position=_pt(x0[:3]), orientation=_q(rot_to_quat_xyzw(rpy_to_rot(x0[3:6]))))

@@ -24,16 +24,15 @@ INF = np.inf
 #: knee against its deck on MuJoCo's model; the executed robot fell (docs/execution.md, session 8)
 LEG_OBJECT_CLEARANCE = 0.03
 
-#: w_carry_pose (a carried object level, its yaw relative to the base as in the nominal carry) is on
-#: by default: with the nominal's carry fixed (set down at its goal, not under the floor) S1's carry
-#: reached its iteration cap without it and passed every check with it (docs/to.md, session 17).
-#: w_carry_offset / w_carry_acc / w_carry_aacc stay off: with them S1's carry did not converge
+#: the carried-object weights (w_carry_*) are off here; S1's task file asks for w_carry_pose 500
+#: (TrajectoryOptions.weights): with the fixed carry nominal S1's carry reached its iteration cap
+#: without it and passed every check with it (docs/to.md, session 17)
 DEFAULT_WEIGHTS = {
     "w_post": 1.0, "w_xd": 0.05, "w_acc": 0.5, "w_force": 0.2, "w_force_rate": 20.0, "w_st_com": 20.0, "w_st_vel": 10.0,
     "w_kff": 5e2, "w_wk_base": 20.0, "w_upright": 20.0, "w_anchor": 10.0, "w_kfb_z": 100.0,
     "w_kfb_th": 10.0, "w_slack": 1e2, "w_self": 1e3, "w_swing": 2e3, "swing_clearance": 0.06,
     "w_pen": 1e4, "w_hom": 1e2, "w_obj_reg": 1.0, "w_obj_acc": 20.0, "w_carry_acc": 0.0, "w_carry_aacc": 0.0,
-    "w_carry_pose": 500.0, "w_carry_offset": 0.0,
+    "w_carry_pose": 0.0, "w_carry_offset": 0.0,
     "w_goal": 1e3,
     "mu_foot": 0.6, "mu_hand": 0.8, "mu_obj": 0.5, "self_margin": 0.0,
     "pair_prefilter": 0.25,

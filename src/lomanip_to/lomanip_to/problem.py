@@ -409,6 +409,20 @@ def check_ipopt_options(opts: dict) -> None:
         raise ProblemError(INVALID_REQUEST, _IPOPT_CHECKED[key], "options")
 
 
+def check_weights(weights: dict) -> None:
+    """Raise INVALID_REQUEST for a cost weight the TO does not have, or one that is negative or not
+    finite (a typo would otherwise be ignored, and a negative weight rewards what it should cost)."""
+    from .discretize import DEFAULT_WEIGHTS
+
+    for name, value in (weights or {}).items():
+        if name not in DEFAULT_WEIGHTS:
+            raise ProblemError(INVALID_REQUEST, f"options.weights: unknown weight {name!r} (known: "
+                                                f"{', '.join(sorted(DEFAULT_WEIGHTS))})", "options")
+        if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+            raise ProblemError(INVALID_REQUEST, f"options.weights: {name} must be a finite number >= 0, "
+                                                f"not {value!r}", "options")
+
+
 def validate_problem(prob: Problem, model=None) -> None:
     """Check a problem before solving; raise :class:`ProblemError` on the first defect."""
     for name in ("guide_hessian", "final_hessian"):
@@ -419,6 +433,7 @@ def validate_problem(prob: Problem, model=None) -> None:
         raise ProblemError(INVALID_REQUEST, f"options.homotopy_form must be one of {', '.join(HOMOTOPY_FORMS)}, "
                                             f"not {prob.options.homotopy_form!r}", "options")
     check_ipopt_options(prob.options.ipopt)
+    check_weights(prob.options.weights)
     bad = [g for g in prob.options.inertial_torque_groups if g not in TORQUE_GROUPS]
     if bad:
         raise ProblemError(INVALID_REQUEST, f"options.inertial_torque_groups: unknown group(s) {', '.join(map(repr, bad))} "
