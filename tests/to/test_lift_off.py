@@ -58,3 +58,23 @@ def test_objects_end_at_rest_like_the_robot(g1):
     v = win.W[f"o{j}_vel"]
     assert np.all(lbw[v, N] == 0) and np.all(ubw[v, N] == 0)
     assert np.any(ubw[v, N - 1] > 0)   # it may roll before that
+
+
+def test_the_knots_after_a_lift_off_start_gently(g1):
+    """The first LIFT_OFF_KNOTS free knots after the one at rest have their speed and turn rates
+    bounded by n x LIFT_OFF_SPEED / LIFT_OFF_TURN_RATE; the carry after them is not."""
+    from lomanip_to.discretize import LIFT_OFF_KNOTS, LIFT_OFF_SPEED, LIFT_OFF_TURN_RATE
+
+    data = ProblemData(load_problem("s1_basket", model=g1), g1)
+    win, _ = solver.get_window(g1, data.structure)
+    lbw, ubw, _, _, _, _ = data.fill(win, *solver.homotopy_stages(data.prob.options)[-1])
+    v = win.W[f"o{data.midx['box']}_vel"]
+    modes = [data.obj_mode(k, "box") for k in range(data.grid.K)]
+    rest = next(k for k in range(1, data.grid.K) if modes[k] == "free" and modes[k - 1] == "supported")
+    assert np.all(ubw[v, rest] == 0)
+    for n in range(1, LIFT_OFF_KNOTS + 1):
+        lim = n * np.array([LIFT_OFF_SPEED] * 3 + [LIFT_OFF_TURN_RATE] * 3)
+        np.testing.assert_allclose(ubw[v, rest + n], lim)
+        np.testing.assert_allclose(lbw[v, rest + n], -lim)
+    assert modes[rest + LIFT_OFF_KNOTS + 1] == "free"
+    assert np.all(ubw[v, rest + LIFT_OFF_KNOTS + 1] == 3.0)

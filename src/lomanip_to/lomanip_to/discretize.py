@@ -123,6 +123,14 @@ WHEEL_ROLLING_RESISTANCE = 1.5
 #: S1's plans tilted the box 0.3-0.7 rad while carrying it; a two-hand friction grasp under physics
 #: then let it pivot about the axis between the hands and slide out (docs/execution.md, session 5)
 CARRY_TILT = 0.25
+#: speed (m/s, each axis) and turn rate (rad/s, each of roll/pitch/yaw rates) an object may reach
+#: per knot over the first LIFT_OFF_KNOTS knots after it leaves its support (n times these at the
+#: n-th). Why: at 0.2 s knots with an explicit Euler step, a 15 N imbalance of the hands' forces
+#: moved S1's 2.5 kg box 0.27 m or yawed it 0.58 rad in its first free knot, in every passing plan,
+#: and the executed friction grasp lost the box there (docs/execution.md, sessions 16-17)
+LIFT_OFF_SPEED = 0.25
+LIFT_OFF_TURN_RATE = 0.3
+LIFT_OFF_KNOTS = 2
 #: time (s) the nominal takes to stand up after the hands let go at the end of a task or segment
 STAND_UP_TIME = 1.0
 
@@ -310,6 +318,16 @@ class ProblemData:
         if mo.mode == "free" and self._lift_start(k, oid, mo):
             return "supported"
         return mo.mode
+
+    def _knots_after_lift_off(self, k: int, oid: str) -> int:
+        """n (1..LIFT_OFF_KNOTS) if knot ``k`` is the n-th free knot after the one at which ``oid``
+        left its support (that one is at rest), else 0."""
+        for n in range(1, LIFT_OFF_KNOTS + 1):
+            if k - n - 1 < 0 or any(self.obj_mode(k - i, oid) != "free" for i in range(n + 1)):
+                return 0
+            if self.obj_mode(k - n - 1, oid) in ("supported", "rolling"):
+                return n
+        return 0
 
     def _lift_start(self, k: int, oid: str, mo) -> bool:
         """Whether knot ``k`` is the first of a lift: the object is free from here but was resting.
@@ -624,8 +642,12 @@ class ProblemData:
                 # the hands alone accelerate it from there. Without this the floor's force at the
                 # last supported knot launched S1's box 14 cm up while the hands pushed it down.
                 lift_off = mode == "free" and prev in ("supported", "rolling")
+                n_lift = self._knots_after_lift_off(k, oid)
                 if mode == "fixed" or prev == "fixed" or k == 0 or lift_off or self._left_alone(k, oid):
                     setb(f"o{j}_vel", k, 0, 0)
+                elif n_lift:  # the knots right after a lift-off: a gentle start (LIFT_OFF_SPEED)
+                    lim = n_lift * np.array([LIFT_OFF_SPEED] * 3 + [LIFT_OFF_TURN_RATE] * 3)
+                    setb(f"o{j}_vel", k, -lim, lim)
                 else:
                     setb(f"o{j}_vel", k, -3, 3)
                 if mode in ("supported", "rolling"):
