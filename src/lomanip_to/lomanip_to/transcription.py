@@ -403,8 +403,9 @@ class Window:
             # a carried object turns smoothly too (its linear part is the row above)
             cost += pp["w_stage"] * pp[f"o{j}_w_aacc"] * ca.sumsqr((vb[3:6] - va[3:6]) / dt)
             # a carried object stays level and keeps its yaw relative to the base (the nominal's,
-            # blended from the grasp to the placement): the way a person carries a box.  Without it
-            # S1's plans yawed the box 0.58 rad in 0.2 s in the lift and the executed hands lost it
+            # blended from the grasp to the placement): the way a person carries a box.  S1's task
+            # file asks for it: with the fixed carry nominal its carry converged only with it
+            # (docs/to.md, session 17; it does not stop the first lift knot's jerk)
             cost += pp["w_stage"] * pp[f"o{j}_w_pose"] * (
                 rpya[0] ** 2 + rpya[1] ** 2 + 2 * (1 - ca.cos(rpya[2] - wa["x"][5] - pp[f"o{j}_yaw_rel"])))
             # ... and stays at the nominal's height and lateral offset from the base (the distance in
