@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .hip_coupling import HIP_JOINTS, hip_roll_clearance
 from .model import FEET, GRAVITY, HANDS, G1Model, rpy_rate_matrix, rpy_to_rot
 
 TOL = {
@@ -144,10 +145,17 @@ def foot_slip(res):
 
 
 def joint_limit_violation(model: G1Model, res):
+    """Worst excess over the joint ranges and over the coupled hip limit (after the start knot)."""
     th = res.x_knots[:, 6:]
     v = np.maximum(model.q_lower - th, th - model.q_upper)
     k, j = np.unravel_index(np.argmax(v), v.shape)
-    return float(max(v.max(), 0.0)), (model.joint_names[j], float(res.t_knots[k]))
+    worst = (float(max(v.max(), 0.0)), (model.joint_names[j], float(res.t_knots[k])))
+    if len(th) > 1:
+        c = -np.array([hip_roll_clearance(q) for q in th[1:]])
+        kc, s = np.unravel_index(np.argmax(c), c.shape)
+        if c[kc, s] > worst[0]:
+            worst = (float(c[kc, s]), (f"{tuple(HIP_JOINTS)[s]} hip roll coupling", float(res.t_knots[kc + 1])))
+    return worst
 
 
 def torque_ratio(model: G1Model, res):

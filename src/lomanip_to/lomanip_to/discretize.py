@@ -757,6 +757,7 @@ class ProblemData:
             for (a, b) in win.st.self_pairs:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
             rows("floor clearance", k, 0, INF)  # smooth, so on in every homotopy stage
+            rows("hip roll coupling", k, 0 if k > 0 else -INF, INF)  # knot 0 is the measured start
             self._support_rows(k, last, rows)
             rows("feet apart", k, FEET_MIN_LATERAL if k > 0 else -INF, INF)  # knot 0 is the measured start
             # |tau| <= margin tau_max: quasi-static rows leave out the distal links' inertia

@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from .hip_coupling import hip_roll_clearance
 from .layout import Layout, sx_split
 from .model import FEET, GRAVITY, HANDS, SOLE_FORCE_POINTS, G1Model, rpy_rate_matrix, rpy_to_rot, rot_z
 
@@ -459,6 +460,8 @@ class Window:
         half_ac = 0.5 * _soft_norm(ca.dot(sole_l - sole_r, lat))
         add("CoM inside the double stance", ca.vertcat(ca.dot(rel, head) + half_al, ca.dot(rel, head) - half_al,
                                                        ca.dot(rel, lat) + half_ac, ca.dot(rel, lat) - half_ac))
+        # deep hip flexion needs an abducted thigh, or the hip-roll link meets the pelvis (hip_coupling)
+        add("hip roll coupling", hip_roll_clearance(wa["x"][6:]))
         for (i, j) in st.self_pairs:
             si, sj = m.spheres[i], m.spheres[j]
             dd = ca.sumsqr(spheres[i] - spheres[j]) - (si.radius + sj.radius + pp["self_margin"]) ** 2
