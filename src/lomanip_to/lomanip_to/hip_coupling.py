@@ -15,8 +15,8 @@ constants were fitted to the zero-distance boundary of MuJoCo's meshes (pelvis a
 and hip-yaw links, swept over pitch in [-2.53, -0.8]) and shifted 0.04 rad inside it:
 ``tests/to/test_hip_coupling.py`` sweeps the meshes again and checks both sides.
 
-The retargeting's keyframes are not held to it: they keep to the meshes already (S1's pick keyframe
-lies 0.04 rad inside this bound, on the meshes' boundary), and with the bound as an IK limit S1's
+The retargeting's keyframes are not held to it (S1's pick keyframe lies 0.04 rad past it, at the
+meshes' boundary): with the bound as an IK limit the squatting start could not recover, and S1's
 squat became a stoop (pelvis 0.58 m instead of 0.22 m) whose carry nominal broke.
 """
 from __future__ import annotations
