@@ -133,31 +133,12 @@ LIFT_OFF_TURN_RATE = 0.3
 LIFT_OFF_KNOTS = 2
 #: time (s) the nominal takes to stand up after the hands let go at the end of a task or segment
 STAND_UP_TIME = 1.0
-#: where the nominal carries a lifted object while the robot walks: in front of the torso (its
-#: near face this far ahead of the pelvis, m) with its bottom this far above the pelvis (m), the
-#: way a person carries a box against the chest. Why: blended from the grasp in a squat to the
-#: set-down, S1's box rode at 0.72 m, its bottom at the swinging knees' height; every S1 plan then
-#: lifted it to 0.9-1.4 m, or carried it at the hip, tilting the pelvis 0.5 rad, within 0.2-0.4 s of
-#: the lift, and every executed plan fell there (docs/execution.md, session 18)
-CARRY_AHEAD = 0.16
-CARRY_ABOVE_PELVIS = 0.10
 
 
 def _smoothstep(u: float) -> float:
     """0 below 0, 1 above 1, 3u^2 - 2u^3 between: a blend that starts and ends at rest."""
     u = min(1.0, max(0.0, u))
     return u * u * (3.0 - 2.0 * u)
-
-
-def _primitive_bounds(o: SceneObject) -> tuple[np.ndarray, np.ndarray]:
-    """Axis-aligned bounds (object frame) of an object's primitives, each boxed by its half extents."""
-    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-    for pr in o.primitives:
-        R = np.abs(rpy_to_rot(np.array([0.0, 0.0, pr.yaw])))
-        ext = R @ np.asarray(pr.half_extents(), float)
-        c = np.asarray(pr.position, float)
-        lo, hi = np.minimum(lo, c - ext), np.maximum(hi, c + ext)
-    return lo, hi
 
 
 def _relative_to_base(x: np.ndarray, pose: np.ndarray) -> np.ndarray:
@@ -285,21 +266,9 @@ class ProblemData:
                     # with the base to the last knot instead of going back to where it started
                     rel1, k_end = rel0.copy(), k1 + 1
                 rel1[5] = rel0[5] + math.remainder(rel1[5] - rel0[5], 2 * math.pi)
-                walk = [k for k in range(k0, k1 + 1) if self.obj_mode(k, oid) == "free"
-                        and self.prob.phases[self.grid.phase[k]].phase_type == WALKING]
-                rel_carry = self._carry_pose(oid, rel0) if walk else None
                 for k in range(k0 + 1, k_end):
-                    if rel_carry is None:
-                        s = (t[k] - t[k0]) / (t[k1] - t[k0])
-                        rel = (1 - s) * rel0 + s * rel1
-                    elif k <= walk[0]:  # lift to the carry pose before the first step
-                        s = _smoothstep((t[k] - t[k0]) / (t[walk[0]] - t[k0]))
-                        rel = (1 - s) * rel0 + s * rel_carry
-                    elif k <= walk[-1] + 1 or k1 <= walk[-1] + 1:
-                        rel = rel_carry
-                    else:  # and down to the set-down after the last
-                        s = _smoothstep((t[k] - t[walk[-1] + 1]) / (t[k1] - t[walk[-1] + 1]))
-                        rel = (1 - s) * rel_carry + s * rel1
+                    s = (t[k] - t[k0]) / (t[k1] - t[k0])
+                    rel = (1 - s) * rel0 + s * rel1
                     pose = _from_base(X[k], rel)
                     self.carry_rel.setdefault(oid, np.full((self.grid.K, 6), np.nan))[k] = rel
                     if self.obj_mode(k, oid) in ("supported", "rolling"):
@@ -315,17 +284,6 @@ class ProblemData:
                         pose[:3] = pc[:3] + rpy_to_rot(pc[3:]) @ off[:3]
                         pose[5] = pc[5] + off[3]
                         self.obj_nom[other][k] = pose
-
-    def _carry_pose(self, oid: str, rel_grasp: np.ndarray) -> np.ndarray:
-        """The walking carry's pose relative to the base (CARRY_AHEAD, CARRY_ABOVE_PELVIS): level,
-        centred, with the grasp's yaw relative to the base."""
-        lo, hi = _primitive_bounds(self.prob.object(oid))
-        half = 0.5 * (hi - lo)
-        yaw = rel_grasp[5]
-        depth = abs(half[0] * math.cos(yaw)) + abs(half[1] * math.sin(yaw))
-        centre = rpy_to_rot(np.array([0.0, 0.0, yaw])) @ (0.5 * (hi + lo))  # primitives' centre, base axes
-        return np.array([CARRY_AHEAD + depth - centre[0], -centre[1], CARRY_ABOVE_PELVIS + half[2] - centre[2],
-                         0.0, 0.0, yaw])
 
     def _goal_in_horizon(self, oid: str) -> bool:
         t_end = self.grid.t[-1] + 1e-9
