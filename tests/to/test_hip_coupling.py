@@ -56,6 +56,12 @@ def test_the_bound_is_collision_free_and_tight_on_the_meshes(mesh, side):
     assert touching >= 10  # the sweep does reach the deep flexion where the bound acts
 
 
+def test_the_hip_indices_name_the_hip_joints(g1):
+    for side, (pitch, roll, _) in HIP_JOINTS.items():
+        assert g1.joint_names[pitch] == f"{side}_hip_pitch_joint"
+        assert g1.joint_names[roll] == f"{side}_hip_roll_joint"
+
+
 def test_symbolic_and_numeric_clearance_agree():
     rng = np.random.default_rng(3)
     x = ca.SX.sym("q", 29)

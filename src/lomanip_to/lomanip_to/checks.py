@@ -151,7 +151,7 @@ def joint_limit_violation(model: G1Model, res):
     k, j = np.unravel_index(np.argmax(v), v.shape)
     worst = (float(max(v.max(), 0.0)), (model.joint_names[j], float(res.t_knots[k])))
     if len(th) > 1:
-        c = -np.array([hip_roll_clearance(q) for q in th[1:]])
+        c = -hip_roll_clearance(th[1:].T).T  # (knots, sides)
         kc, s = np.unravel_index(np.argmax(c), c.shape)
         if c[kc, s] > worst[0]:
             worst = (float(c[kc, s]), (f"{tuple(HIP_JOINTS)[s]} hip roll coupling", float(res.t_knots[kc + 1])))

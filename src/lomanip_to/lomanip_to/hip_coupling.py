@@ -49,4 +49,3 @@ def hip_roll_clearance(q):
     if isinstance(q, (ca.SX, ca.MX, ca.DM)):
         return ca.vertcat(*out)
     return np.array(out, float)
-
