@@ -151,3 +151,27 @@ def test_options_round_trip_the_single_support_com_lateral(model):
     prob.options = prob.options.replaced(single_support_com_lateral=None)
     req = conv.request_from_problem(prob, model.joint_names)
     assert conv.options_from_msg(req.options).single_support_com_lateral is None
+
+
+def test_options_round_trip_the_interval_momentum_tolerance(model):
+    from lomanip_msgs.msg import TrajectoryOptions
+    from lomanip_to.problem import Options
+
+    assert conv.options_from_msg(TrajectoryOptions()).interval_momentum_tolerance == Options().interval_momentum_tolerance
+    prob = load_problem("case_one_step", model=model)
+    prob.options = prob.options.replaced(interval_momentum_tolerance=0.5)
+    req = conv.request_from_problem(prob, model.joint_names)
+    assert conv.options_from_msg(req.options).interval_momentum_tolerance == 0.5
+    assert conv.options_from_msg(TrajectoryOptions(interval_momentum_tolerance=-1.0)).interval_momentum_tolerance == 0.0
+
+
+def test_options_round_trip_the_upper_body_acceleration_limit(model):
+    from lomanip_msgs.msg import TrajectoryOptions
+    from lomanip_to.problem import Options
+
+    assert conv.options_from_msg(TrajectoryOptions()).upper_body_acceleration_limit == Options().upper_body_acceleration_limit
+    prob = load_problem("case_one_step", model=model)
+    prob.options = prob.options.replaced(upper_body_acceleration_limit=30.0)
+    req = conv.request_from_problem(prob, model.joint_names)
+    assert conv.options_from_msg(req.options).upper_body_acceleration_limit == 30.0
+    assert conv.options_from_msg(TrajectoryOptions(upper_body_acceleration_limit=-1.0)).upper_body_acceleration_limit == 0.0

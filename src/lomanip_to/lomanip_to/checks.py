@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .hip_coupling import HIP_JOINTS, hip_roll_clearance
-from .model import FEET, GRAVITY, HANDS, G1Model, rpy_rate_matrix, rpy_to_rot
+from .model import FEET, GRAVITY, HANDS, G1Model, quat_xyzw_to_rot, rpy_rate_matrix, rpy_to_rot
 
 TOL = {
     "friction_cone": 1e-3,  # N (after scaling), cone rows
@@ -23,6 +23,7 @@ TOL = {
     "torque_ratio": 1.0,  # |tau| / tau_max
     "placement": 0.05,  # m, object position at its placement goal's time
     "placement_yaw": 0.15,  # rad
+    "momentum_between_knots": 1.0,  # kg m^2/s, see momentum_between_knots
 }
 
 
@@ -124,6 +125,33 @@ def momentum_rate_residual(model: G1Model, res):
         if v > worst:
             worst, wk = v, k
     return worst, float(t[wk])
+
+
+def momentum_between_knots(model: G1Model, res, rate: float = 100.0):
+    """max over the dense grid of |L_dense - L_plan| (kg m^2/s): the centroidal angular momentum of
+    the densified motion (the C1 interpolant a controller tracks, ``TOResult.densify``) from
+    Pinocchio, against the plan's own angular momentum interpolated between its knots.
+
+    Why: the TO's dynamics hold at knots 0.1-0.2 s apart.  S1 plans that passed every knot check
+    swung arms and waist at up to 10 rad/s between knots; their densified motion carried 3-5 kg m^2/s
+    the plan did not (the pushes that execute: 0.5-0.6), and no controller could balance it."""
+    import copy
+
+    import pinocchio as pin
+
+    dense = copy.copy(res).densify(rate)
+    m, d = model.pin_model, model.pin_data
+    worst, where = 0.0, 0.0
+    for i in range(len(dense.t)):
+        q = np.concatenate([dense.base_position[i], dense.base_quat_xyzw[i], dense.joint_positions[i]])
+        R = quat_xyzw_to_rot(dense.base_quat_xyzw[i])
+        v = np.concatenate([R.T @ dense.base_linear_velocity[i], R.T @ dense.base_angular_velocity[i],
+                            dense.joint_velocities[i]])
+        pin.computeCentroidalMomentum(m, d, q, v)
+        dev = float(np.linalg.norm(np.asarray(d.hg.angular) - dense.angular_momentum[i]))
+        if dev > worst:
+            worst, where = dev, float(dense.t[i])
+    return worst, where
 
 
 def foot_slip(res):
@@ -261,6 +289,8 @@ def run_checks(model: G1Model, data, res) -> dict:
     v, w, base, rnea = torque_ratio(model, res)
     out["torque_limits"] = {"value": v, "where": f"{w[0]} t={w[1]:.2f}", "ok": v <= TOL["torque_ratio"],
                             "rnea_ratio": rnea, "base_wrench_residual": base}
+    v, tt = momentum_between_knots(model, res)
+    out["momentum_between_knots"] = {"value": v, "where": f"t={tt:.2f}", "ok": v <= TOL["momentum_between_knots"]}
     dp, dyaw, oid, tg = placement_error(data, res)
     out["placement_goals"] = {"value": dp, "yaw_error": dyaw, "where": f"{oid} t={tg:.2f}" if oid else "",
                               "ok": dp <= TOL["placement"] and dyaw <= TOL["placement_yaw"]}

@@ -181,7 +181,8 @@ class ProblemData:
             self.pairs = list(pairs)
         self.structure = Structure(len(self.moving), tuple(s for s, _ in self.pairs),
                                    self_pairs(model) if opt.self_collision else (),
-                                   tuple(opt.inertial_torque_groups))
+                                   tuple(opt.inertial_torque_groups), opt.interval_momentum_tolerance > 0,
+                                   opt.upper_body_acceleration_limit > 0)
 
     # ------------------------------------------------------------------ object nominal poses
     def _object_timeline(self):
@@ -758,6 +759,12 @@ class ProblemData:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
             rows("floor clearance", k, 0, INF)  # smooth, so on in every homotopy stage
             rows("hip roll coupling", k, 0 if k > 0 else -INF, INF)  # knot 0 is the measured start
+            if win.st.interval_momentum:
+                tol = INF if last else opt.interval_momentum_tolerance / m.mass
+                rows("angular momentum across the interval", k, -tol, tol)
+            if win.st.upper_body_acceleration:
+                dv = INF if last else opt.upper_body_acceleration_limit * (self.grid.t[k + 1] - self.grid.t[k])
+                rows("upper-body acceleration", k, -dv, dv)
             self._support_rows(k, last, rows)
             rows("feet apart", k, FEET_MIN_LATERAL if k > 0 else -INF, INF)  # knot 0 is the measured start
             # |tau| <= margin tau_max: quasi-static rows leave out the distal links' inertia

@@ -306,6 +306,19 @@ class Options:
     #: with the arms dynamic S1's carry did not converge (docs/to.md, session 12). The physical
     #: check counts the inertia of every joint whatever this says
     inertial_torque_groups: tuple = ("waist",)
+    #: kg m^2/s: the angular momentum of each interval's velocity, taken at the interval's first knot,
+    #: stays within this of the momentum at its last knot (0 = off). The dynamics hold at knots
+    #: 0.1-0.2 s apart, and a velocity that carries little momentum at one end and a lot at the
+    #: other swings the body between them: S1's lift and carry did, and the densified motion a
+    #: controller tracks carried 3-5 kg m^2/s the plan did not (docs/to.md, session 19). Costs one
+    #: more momentum evaluation per knot
+    interval_momentum_tolerance: float = 0.0
+    #: rad/s^2: bound on the change of the base's rotation rates and the waist and arm joint speeds
+    #: from one knot interval to the next, over the interval (0 = off). The legs are left free (a
+    #: step's swing needs them). Why: S1's passing plans lifted and carried the box with arm
+    #: accelerations up to 200 rad/s^2 between knots (the pushes that execute: under 20); such a
+    #: plan holds its dynamics at the knots only (docs/to.md, session 19)
+    upper_body_acceleration_limit: float = 0.0
     weights: dict = field(default_factory=dict)
     #: extra ipopt options (expert use; e.g. {"mu_strategy": "monotone"})
     ipopt: dict = field(default_factory=dict)
@@ -438,6 +451,14 @@ def validate_problem(prob: Problem, model=None) -> None:
     if bad:
         raise ProblemError(INVALID_REQUEST, f"options.inertial_torque_groups: unknown group(s) {', '.join(map(repr, bad))} "
                                             f"(known: {', '.join(TORQUE_GROUPS)})", "options")
+    tol = prob.options.interval_momentum_tolerance
+    if not np.isfinite(tol) or tol < 0:
+        raise ProblemError(INVALID_REQUEST, f"options.interval_momentum_tolerance must be >= 0 (0 = off), not {tol}",
+                           "options")
+    acc = prob.options.upper_body_acceleration_limit
+    if not np.isfinite(acc) or acc < 0:
+        raise ProblemError(INVALID_REQUEST, f"options.upper_body_acceleration_limit must be >= 0 (0 = off), not {acc}",
+                           "options")
     ids = set()
     for i, o in enumerate(prob.objects):
         w = f"objects[{i}] ({o.id})"

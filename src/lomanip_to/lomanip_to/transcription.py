@@ -72,6 +72,10 @@ class Structure:
     #: torque-row groups (model.torque_row_joints) whose rows also carry the inertia of the links
     #: beyond the joint (Options.inertial_torque_groups)
     inertial_groups: tuple
+    #: rows of the angular momentum across each interval (Options.interval_momentum_tolerance > 0)
+    interval_momentum: bool = False
+    #: rows of the upper body's acceleration (Options.upper_body_acceleration_limit > 0)
+    upper_body_acceleration: bool = False
 
     def key(self) -> str:
         return hashlib.sha1(repr(self).encode()).hexdigest()[:12]
@@ -259,6 +263,14 @@ class Window:
         # rate of angular momentum about the CoM over the weight (m): the horizontal distance of the
         # centroidal moment pivot from the centre of pressure; bounded only when Options ask for it
         add("angular momentum rate (CMP offset)", torque[0:2])
+        if st.interval_momentum:
+            # the next interval's velocity at this knot's configuration, against its momentum at
+            # the next knot (Options.interval_momentum_tolerance)
+            _, h_ab = m.com_and_momentum(m.symbolic_tree(wa["x"], wb["xd"]))
+            add("angular momentum across the interval", h_ab[3:6] / mass - wb["kk"])
+        if st.upper_body_acceleration:
+            # base rotation rates, waist and arm joints (Options.upper_body_acceleration_limit)
+            add("upper-body acceleration", ca.vertcat(wb["xd"][3:6] - wa["xd"][3:6], wb["xd"][18:35] - wa["xd"][18:35]))
         # ---- centroidal consistency (knot rows)
         add("CoM consistency", wa["com"] - com_x)
         add("centroidal momentum consistency (CMM)",
