@@ -175,3 +175,14 @@ def test_options_round_trip_the_upper_body_acceleration_limit(model):
     req = conv.request_from_problem(prob, model.joint_names)
     assert conv.options_from_msg(req.options).upper_body_acceleration_limit == 30.0
     assert conv.options_from_msg(TrajectoryOptions(upper_body_acceleration_limit=-1.0)).upper_body_acceleration_limit == 0.0
+
+
+def test_options_round_trip_the_carried_object_clearance(model):
+    from lomanip_msgs.msg import TrajectoryOptions
+    from lomanip_to.problem import Options
+
+    assert conv.options_from_msg(TrajectoryOptions()).carried_object_clearance == Options().carried_object_clearance
+    prob = load_problem("case_one_step", model=model)
+    prob.options = prob.options.replaced(carried_object_clearance=0.05)
+    req = conv.request_from_problem(prob, model.joint_names)
+    assert conv.options_from_msg(req.options).carried_object_clearance == 0.05

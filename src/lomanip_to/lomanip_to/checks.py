@@ -127,6 +127,52 @@ def momentum_rate_residual(model: G1Model, res):
     return worst, float(t[wk])
 
 
+def penetration_between_knots(model: G1Model, data, res, rate: float = 50.0):
+    """(max penetration m, t) of the robot's spheres into the objects on the dense grid between
+    knots (``TOResult.densify``), for the pairs the TO keeps apart at both neighbouring knots.
+
+    Why: the collision rows hold at knots only. S1's plans held the box against the torso, head and
+    upper arms at every knot (clearance 0) and passed up to 15 cm through them in between."""
+    import copy
+
+    from .discretize import obj_prims_world
+    from .model import rot_to_rpy
+
+    dense = copy.copy(res).densify(rate)
+    tk = res.t_knots
+    radii = np.array([sph.radius for sph in model.spheres])
+    enabled = {}  # (knot, object id) -> mask over the spheres
+
+    def on(k, oid):
+        if (k, oid) not in enabled:
+            enabled[k, oid] = np.array([data._pair_enabled(k, i, oid) for i in range(len(radii))])
+        return enabled[k, oid]
+
+    worst, where = 0.0, 0.0
+    for i, t in enumerate(dense.t):
+        k = int(np.searchsorted(tk, t, side="right")) - 1
+        if k >= len(tk) - 1 or np.min(np.abs(tk - t)) < 1e-6:
+            continue  # at a knot: penetration_per_knot's business
+        x = np.concatenate([dense.base_position[i], rot_to_rpy(quat_xyzw_to_rot(dense.base_quat_xyzw[i])),
+                            dense.joint_positions[i]])
+        cs = np.asarray(model.numeric(x)["spheres"])
+        for o in data.prob.objects:
+            if o.id in dense.object_positions:
+                prims = obj_prims_world(o, dense.object_positions[o.id][i],
+                                        rot_to_rpy(quat_xyzw_to_rot(dense.object_quat_xyzw[o.id][i])))
+            else:
+                prims = obj_prims_world(o)
+            mask = on(k, o.id) & on(k + 1, o.id)
+            for (c, R, he) in prims:
+                q = np.abs((cs - c) @ R) - he  # per sphere, in the primitive's frame
+                d = np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0) - radii
+                d = np.where(mask, -d, 0.0)
+                j = int(np.argmax(d))
+                if d[j] > worst:
+                    worst, where = float(d[j]), float(t)
+    return worst, where
+
+
 def momentum_between_knots(model: G1Model, res, rate: float = 100.0):
     """max over the dense grid of |L_dense - L_plan| (kg m^2/s): the centroidal angular momentum of
     the densified motion (the C1 interpolant a controller tracks, ``TOResult.densify``) from
@@ -283,7 +329,11 @@ def run_checks(model: G1Model, data, res) -> dict:
     v, w = foot_slip(res)
     out["foot_slip"] = {"value": v, "where": f"{w[0]} t={w[1]:.2f}", "ok": v <= TOL["foot_slip"]}
     pen = res.stats.max_penetration
-    out["penetration"] = {"value": pen, "where": f"t={res.stats.max_penetration_time:.2f}", "ok": pen <= TOL["penetration"]}
+    # reported, not gated: the rows hold at knots only (the demo's pushes that execute pass 1-5 cm
+    # between knots; S1's plans up to 15 cm)
+    between, tb = penetration_between_knots(model, data, res)
+    out["penetration"] = {"value": pen, "where": f"t={res.stats.max_penetration_time:.2f}", "ok": pen <= TOL["penetration"],
+                          "between_knots": between, "between_knots_where": f"t={tb:.2f}"}
     v, w = joint_limit_violation(model, res)
     out["joint_limits"] = {"value": v, "where": f"{w[0]} t={w[1]:.2f}", "ok": v <= TOL["joint_limits"]}
     v, w, base, rnea = torque_ratio(model, res)

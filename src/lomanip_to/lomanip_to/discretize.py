@@ -753,7 +753,7 @@ class ProblemData:
                     rows(f"o{j} attachment", k, -INF, INF)
             for i, (s, (oid, pi)) in enumerate(self.pairs):
                 on = self._pair_enabled(k, s, oid)
-                rows(f"c{i} collision", k, self._clearance(s) if (hard and on) else -INF, INF)
+                rows(f"c{i} collision", k, self._clearance(s, k, oid) if (hard and on) else -INF, INF)
                 rows(f"c{i} homotopy surrogate", k, 0 if (homotopy is True and on) else -INF, INF)
             for (a, b) in win.st.self_pairs:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
@@ -1080,11 +1080,18 @@ class ProblemData:
                 col[P[f"o{j}_w_goal"]] = g.weight
                 col[P[f"o{j}_goal"]] = [*g.position, g.yaw]
 
-    def _clearance(self, s: int) -> float:
+    def _clearance(self, s: int, k: int | None = None, oid: str | None = None) -> float:
         """Least distance (m) the hard collision row keeps sphere ``s`` from an object's
-        primitives: LEG_OBJECT_CLEARANCE for feet and shins, else 0."""
+        primitives: LEG_OBJECT_CLEARANCE for feet and shins, else 0; while ``oid`` is carried at
+        knot ``k``, at least Options.carried_object_clearance for every sphere but the hands' and
+        forearms' (they hold it)."""
         grp = self.model.spheres[s].group
-        return LEG_OBJECT_CLEARANCE if grp.endswith(("_foot", "_shin")) else 0.0
+        out = LEG_OBJECT_CLEARANCE if grp.endswith(("_foot", "_shin")) else 0.0
+        carried = self.prob.options.carried_object_clearance
+        if carried > 0 and k is not None and not grp.endswith(("_hand", "_forearm")) \
+                and self.obj_mode(k, oid) == "free":
+            out = max(out, carried)
+        return out
 
     def _pair_enabled(self, k, s, oid) -> bool:
         grp = self.model.spheres[s].group
@@ -1140,7 +1147,7 @@ class ProblemData:
         # ended with the shins 1.6 cm into the box (the grasp keyframe's posture has them 8 cm in),
         # 4.6 cm short of the final stage's 3 cm leg clearance; that stage then started cold, its
         # barrier stuck at 0.8 for 300 iterations, and it stopped "locally infeasible"
-        col[P[f"c{i}_half"]] = pr.half_extents() + (0.0 if hard else self._clearance(s))
+        col[P[f"c{i}_half"]] = pr.half_extents() + (0.0 if hard else self._clearance(s, k, oid))
         on = self._pair_enabled(k, s, oid)
         col[P[f"c{i}_w"]] = [self.w["w_pen"] if (penalty and on) else 0.0,
                              self._homotopy_weight(homotopy) if on else 0.0, expo]

@@ -319,6 +319,12 @@ class Options:
     #: accelerations up to 200 rad/s^2 between knots (the pushes that execute: under 20); such a
     #: plan holds its dynamics at the knots only (docs/to.md, session 19)
     upper_body_acceleration_limit: float = 0.0
+    #: m: while an object is carried, the TO's collision rows keep it this far from every body sphere
+    #: but the hands and forearms (0 = off: only the shins' and feet's 3 cm). Why: the TO checks
+    #: collisions at its knots; S1's plans held the box against the torso, head and upper arms at
+    #: every knot (clearance 0) and between knots it passed up to 15 cm through them (docs/to.md,
+    #: session 19)
+    carried_object_clearance: float = 0.0
     weights: dict = field(default_factory=dict)
     #: extra ipopt options (expert use; e.g. {"mu_strategy": "monotone"})
     ipopt: dict = field(default_factory=dict)
@@ -458,6 +464,10 @@ def validate_problem(prob: Problem, model=None) -> None:
     acc = prob.options.upper_body_acceleration_limit
     if not np.isfinite(acc) or acc < 0:
         raise ProblemError(INVALID_REQUEST, f"options.upper_body_acceleration_limit must be >= 0 (0 = off), not {acc}",
+                           "options")
+    gap = prob.options.carried_object_clearance
+    if not np.isfinite(gap) or gap < 0 or gap > 0.2:
+        raise ProblemError(INVALID_REQUEST, f"options.carried_object_clearance must be in [0, 0.2] m (0 = off), not {gap}",
                            "options")
     ids = set()
     for i, o in enumerate(prob.objects):
