@@ -153,36 +153,16 @@ def test_options_round_trip_the_single_support_com_lateral(model):
     assert conv.options_from_msg(req.options).single_support_com_lateral is None
 
 
-def test_options_round_trip_the_interval_momentum_tolerance(model):
+
+@pytest.mark.parametrize("name, value", [("interval_momentum_tolerance", 0.5), ("upper_body_acceleration_limit", 30.0),
+                                         ("carried_object_clearance", 0.05)])
+def test_options_round_trip_the_rows_on_the_motion_between_knots(model, name, value):
     from lomanip_msgs.msg import TrajectoryOptions
     from lomanip_to.problem import Options
 
-    assert conv.options_from_msg(TrajectoryOptions()).interval_momentum_tolerance == Options().interval_momentum_tolerance
+    assert getattr(conv.options_from_msg(TrajectoryOptions()), name) == getattr(Options(), name) == 0.0
     prob = load_problem("case_one_step", model=model)
-    prob.options = prob.options.replaced(interval_momentum_tolerance=0.5)
+    prob.options = prob.options.replaced(**{name: value})
     req = conv.request_from_problem(prob, model.joint_names)
-    assert conv.options_from_msg(req.options).interval_momentum_tolerance == 0.5
-    assert conv.options_from_msg(TrajectoryOptions(interval_momentum_tolerance=-1.0)).interval_momentum_tolerance == 0.0
-
-
-def test_options_round_trip_the_upper_body_acceleration_limit(model):
-    from lomanip_msgs.msg import TrajectoryOptions
-    from lomanip_to.problem import Options
-
-    assert conv.options_from_msg(TrajectoryOptions()).upper_body_acceleration_limit == Options().upper_body_acceleration_limit
-    prob = load_problem("case_one_step", model=model)
-    prob.options = prob.options.replaced(upper_body_acceleration_limit=30.0)
-    req = conv.request_from_problem(prob, model.joint_names)
-    assert conv.options_from_msg(req.options).upper_body_acceleration_limit == 30.0
-    assert conv.options_from_msg(TrajectoryOptions(upper_body_acceleration_limit=-1.0)).upper_body_acceleration_limit == 0.0
-
-
-def test_options_round_trip_the_carried_object_clearance(model):
-    from lomanip_msgs.msg import TrajectoryOptions
-    from lomanip_to.problem import Options
-
-    assert conv.options_from_msg(TrajectoryOptions()).carried_object_clearance == Options().carried_object_clearance
-    prob = load_problem("case_one_step", model=model)
-    prob.options = prob.options.replaced(carried_object_clearance=0.05)
-    req = conv.request_from_problem(prob, model.joint_names)
-    assert conv.options_from_msg(req.options).carried_object_clearance == 0.05
+    assert getattr(conv.options_from_msg(req.options), name) == value
+    assert getattr(conv.options_from_msg(TrajectoryOptions(**{name: -1.0})), name) == 0.0  # off

@@ -95,3 +95,14 @@ def test_unknown_hessian_option(lift, g1):
     p = copy.deepcopy(lift)
     p.options = p.options.replaced(guide_hessian="gauss-newton")
     _expect(p, g1, INVALID_REQUEST, "options.guide_hessian must be one of exact, cost")
+
+
+@pytest.mark.parametrize("name, bad", [("interval_momentum_tolerance", -0.1), ("interval_momentum_tolerance", float("nan")),
+                                       ("upper_body_acceleration_limit", -1.0),
+                                       ("upper_body_acceleration_limit", float("inf")),
+                                       ("carried_object_clearance", -0.01), ("carried_object_clearance", 0.5),
+                                       ("carried_object_clearance", float("nan"))])
+def test_rows_on_the_motion_between_knots_refuse_bad_values(lift, g1, name, bad):
+    p = copy.deepcopy(lift)
+    p.options = p.options.replaced(**{name: bad})
+    _expect(p, g1, INVALID_REQUEST, f"options.{name} must be")
