@@ -457,18 +457,11 @@ def validate_problem(prob: Problem, model=None) -> None:
     if bad:
         raise ProblemError(INVALID_REQUEST, f"options.inertial_torque_groups: unknown group(s) {', '.join(map(repr, bad))} "
                                             f"(known: {', '.join(TORQUE_GROUPS)})", "options")
-    tol = prob.options.interval_momentum_tolerance
-    if not np.isfinite(tol) or tol < 0:
-        raise ProblemError(INVALID_REQUEST, f"options.interval_momentum_tolerance must be >= 0 (0 = off), not {tol}",
-                           "options")
-    acc = prob.options.upper_body_acceleration_limit
-    if not np.isfinite(acc) or acc < 0:
-        raise ProblemError(INVALID_REQUEST, f"options.upper_body_acceleration_limit must be >= 0 (0 = off), not {acc}",
-                           "options")
-    gap = prob.options.carried_object_clearance
-    if not np.isfinite(gap) or gap < 0 or gap > 0.2:
-        raise ProblemError(INVALID_REQUEST, f"options.carried_object_clearance must be in [0, 0.2] m (0 = off), not {gap}",
-                           "options")
+    for name, hi, rule in (("interval_momentum_tolerance", np.inf, ">= 0"), ("upper_body_acceleration_limit", np.inf, ">= 0"),
+                           ("carried_object_clearance", 0.2, "in [0, 0.2] m")):
+        val = getattr(prob.options, name)
+        if not (np.isfinite(val) and 0 <= val <= hi):
+            raise ProblemError(INVALID_REQUEST, f"options.{name} must be {rule} (0 = off), not {val}", "options")
     ids = set()
     for i, o in enumerate(prob.objects):
         w = f"objects[{i}] ({o.id})"
