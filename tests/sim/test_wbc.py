@@ -404,3 +404,51 @@ def test_swing_foot_target_moves_with_the_capture_point():
     assert np.linalg.norm(moved) <= wbc.g.step_adjust_max + 1e-12
     wbc.g.step_adjust_gain = 0.0
     assert np.allclose(adjustment(0.4), 0.0)
+
+
+def test_angular_momentum_matrix_matches_mujoco():
+    """A_L @ qvel is MuJoCo's angular momentum of the robot about its CoM (mj_subtreeVel)."""
+    sim, tr = simulation("case_stand")
+    wbc = WholeBodyController(sim.world, tr)
+    m, d = sim.model, sim.data
+    rng = np.random.default_rng(3)
+    d.qpos[wbc.bq + 7 : wbc.bq + 7 + NJ] += rng.normal(0, 0.2, NJ)
+    d.qvel[wbc.dofs] = rng.normal(0, 1.0, 35)
+    mujoco.mj_forward(m, d)
+    mujoco.mj_subtreeVel(m, d)
+    A = wbc.angular_momentum_matrix(d, d.subtree_com[wbc.pelvis])
+    np.testing.assert_allclose(A @ d.qvel[wbc.dofs], d.subtree_angmom[wbc.pelvis], atol=1e-9)
+
+
+def test_angular_momentum_task_damps_an_arm_swing():
+    """With the momentum task on, an arm swing the plan does not have moves the body less.
+
+    The stand plan has zero angular momentum; a reference that swings the left shoulder (0.3 rad at
+    1 Hz) is given on top of it. Measured peak |L|: 1.65 kg m^2/s with the task off, 0.24 at weight
+    100 (1.14 at 10, 0.56 at 30), with the same joint error (0.24-0.26 rad): the QP moves the rest
+    of the body against the arm instead of letting the swing turn the robot."""
+    sim0, tr = simulation("case_stand")
+    j = list(G1_JOINT_NAMES).index("left_shoulder_pitch_joint")
+    q = tr.q.copy()
+    w = 2 * np.pi / 1.0
+    q[:, j] += 0.3 * np.sin(w * tr.t) * (tr.t < tr.duration - 0.2)
+    from lomanip_sim.trajectory import make_trajectory
+
+    swing = make_trajectory(tr.t, G1_JOINT_NAMES, q, np.gradient(q, tr.t, axis=0), tr.base_pos, tr.base_quat,
+                            tr.base_linvel, tr.base_angvel, phases=tr.phases, forces=tr.forces, torques=tr.torques,
+                            angular_momentum=np.zeros((tr.n, 3)))
+
+    def peak(**gains):
+        sim, _ = simulation("case_stand")
+        wbc = WholeBodyController(sim.world, swing, WbcGains(**gains))
+        sim.set_controller(wbc)
+        worst = 0.0
+        for _ in range(int(round((swing.duration - 0.2) / sim.timestep))):
+            sim.step()
+            mujoco.mj_subtreeVel(sim.model, sim.data)
+            worst = max(worst, float(np.linalg.norm(sim.data.subtree_angmom[wbc.pelvis])))
+        assert not sim.has_fallen()
+        return worst
+
+    off, on = peak(), peak(w_angular_momentum=100.0)
+    assert on < 0.3 * off, (on, off)

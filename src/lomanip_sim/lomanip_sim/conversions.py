@@ -200,8 +200,14 @@ def trajectory_from_msg(msg):
         except frames.FrameError as e:
             raise bad(f"object_trajectories[{ot.object_id!r}]: {e}") from None
         objects[ot.object_id] = (np.array([p for p, _ in poses]), np.array([qq for _, qq in poses]))
+    angmom = None
+    if msg.angular_momentum:  # optional: without it the controller has no momentum task
+        if len(msg.angular_momentum) != n:
+            raise bad(f"angular_momentum has {len(msg.angular_momentum)} entries for {n} points")
+        angmom = np.array([[v.x, v.y, v.z] for v in msg.angular_momentum])
     return make_trajectory(t, names, q, qd, base, quat, lin, ang, phases=phases, forces=forces, torques=torques,
-                           objects=objects, scenario=msg.scenario, robot_name=msg.robot_name)  # fmt: skip
+                           objects=objects, scenario=msg.scenario, robot_name=msg.robot_name,
+                           angular_momentum=angmom)  # fmt: skip
 
 
 def execution_metrics_msg(m):

@@ -81,6 +81,8 @@ class Trajectory:
     objects: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)  # id -> (pos (N,3), quat wxyz (N,4))
     scenario: str = ""
     robot_name: str = ROBOT_NAME
+    #: planned centroidal angular momentum about the CoM (N, 3), kg m^2/s, or None (not given)
+    angular_momentum: np.ndarray | None = None
 
     @property
     def duration(self) -> float:
@@ -173,7 +175,7 @@ def check_time_grid(t) -> np.ndarray:
 
 def make_trajectory(t, joint_names, q, qd, base_pos, base_quat_wxyz, base_linvel=None, base_angvel=None, *,
                     phases=(), forces=None, torques=None, objects=None, scenario: str = "",
-                    robot_name: str = ROBOT_NAME) -> Trajectory:  # fmt: skip
+                    robot_name: str = ROBOT_NAME, angular_momentum=None) -> Trajectory:  # fmt: skip
     """Check and build a Trajectory (joint columns reordered into G1 order). Raises TrajectoryError."""
     if robot_name and robot_name != ROBOT_NAME:
         raise TrajectoryError(INVALID_TRAJECTORY, f"trajectory is for robot {robot_name!r}, this sim runs {ROBOT_NAME!r}")
@@ -200,6 +202,7 @@ def make_trajectory(t, joint_names, q, qd, base_pos, base_quat_wxyz, base_linvel
         p = _arr(p, (3,), n, f"object {oid} positions")
         qq = _arr(qq, (4,), n, f"object {oid} orientations")
         objs[oid] = (p, qq / np.maximum(np.linalg.norm(qq, axis=1), 1e-9)[:, None])
+    angmom = _arr(angular_momentum, (3,), n, "angular momenta") if angular_momentum is not None else None
     phases = list(phases)
     for k, ph in enumerate(phases):
         if ph.end < ph.start:
@@ -210,7 +213,8 @@ def make_trajectory(t, joint_names, q, qd, base_pos, base_quat_wxyz, base_linvel
             if limb not in LIMBS:
                 raise TrajectoryError(INVALID_TRAJECTORY, f"unknown limb {limb!r} in contact phase {k}")
     return Trajectory(t=t, q=q, qd=qd, base_pos=base_pos, base_quat=quat, base_linvel=lin, base_angvel=ang,
-                      phases=phases, forces=fz, torques=tz, objects=objs, scenario=scenario, robot_name=robot_name)
+                      phases=phases, forces=fz, torques=tz, objects=objs, scenario=scenario, robot_name=robot_name,
+                      angular_momentum=angmom)
 
 
 def check_against_scene(traj: Trajectory, object_ids) -> None:
@@ -275,6 +279,8 @@ def from_to_result(res, phases, scenario: str = "") -> Trajectory:
     objects = {oid: (res.object_positions[oid], np.array([frames.xyzw_to_wxyz(q) for q in res.object_quat_xyzw[oid]]))
                for oid in (res.object_positions or {})}
     t = np.asarray(res.t, float) - float(res.t[0])
+    angmom = getattr(res, "angular_momentum", None)
     return make_trajectory(t, res.joint_names, res.joint_positions, res.joint_velocities, res.base_position, quat,
                            res.base_linear_velocity, res.base_angular_velocity, phases=phases_from_to(phases),
-                           forces=forces, torques=torques, objects=objects, scenario=scenario)  # fmt: skip
+                           forces=forces, torques=torques, objects=objects, scenario=scenario,
+                           angular_momentum=angmom)  # fmt: skip

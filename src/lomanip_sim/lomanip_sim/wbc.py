@@ -115,6 +115,13 @@ class WbcGains:
     # 1.1 s); 0.1 with the torso task: 9 of 12 push plans executed (docs/execution.md, session 11).
     # At 1 on the arms only (the elbows run 0.1-0.18 rad off the plan at 0.1): 1 of 6
     w_posture: float = 0.1
+    # centroidal angular momentum about the CoM towards the plan's (Trajectory.angular_momentum,
+    # linear between knots: what the planned contact wrenches give). Why: the dense joint motion
+    # between knots can carry angular momentum the plan's wrenches do not (S1's lift, docs/to.md
+    # session 19); this task lets the QP give up that part of the posture and hand tracking
+    # instead of the balance. 0 = off, or when the trajectory has no momentum
+    w_angular_momentum: float = 0.0
+    angular_momentum_kd: float = 10.0  # 1/s
     w_force: float = 1e-3  # per N^2, towards the planned contact force
     reg_qdd: float = 1e-5
     reg_force: float = 1e-5
@@ -264,6 +271,8 @@ class _Refs:
     site_v: dict = field(default_factory=dict)  # limb -> (N,6) linear, angular (world)
     site_a: dict = field(default_factory=dict)  # limb -> (N,6)
     qdd: np.ndarray | None = None
+    angmom: np.ndarray | None = None  # (N,3) planned angular momentum about the CoM
+    angmom_rate: np.ndarray | None = None  # (N,3)
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
@@ -348,6 +357,9 @@ class WholeBodyController:
         self._admittance: dict = {}  # hand -> [contact, normal shift (m)] while pushing a floor object
         self._push_force: dict = {}  # hand -> (normal, desired normal force on the robot) this step
         self._com_shift = np.zeros(2)  # the CoM reference's clamp shift (com_margin, com_clamp_time)
+        root = int(m.body_rootid[self.pelvis])
+        self._robot_bodies = [b for b in range(1, m.nbody) if int(m.body_rootid[b]) == root and m.body_mass[b] > 0]
+        self._angmom_prev: tuple[float, np.ndarray] | None = None  # (time, A_L) of the last step
 
     # ---------------------------------------------------------------------------- references
     def _precompute_refs(self) -> _Refs:
@@ -419,7 +431,9 @@ class WholeBodyController:
                      base_a=grad(tr.base_linvel), base_R=base_R, base_w=base_w, base_alpha=grad(base_w),
                      torso_R=torso_R, torso_w=torso_w, torso_p=torso_p,
                      site_p=sp, site_R=sR, site_v=sv, site_a={l: grad(v) for l, v in sv.items()},
-                     qdd=grad(tr.qd))  # fmt: skip
+                     qdd=grad(tr.qd),
+                     angmom=tr.angular_momentum,
+                     angmom_rate=grad(tr.angular_momentum) if tr.angular_momentum is not None else None)  # fmt: skip
 
     def _object_net_forces(self) -> dict:
         """object -> (N,3) force the grasp must give it for its planned motion, m (a + g) (dense plan,
@@ -722,6 +736,16 @@ class WholeBodyController:
             shift *= g.step_adjust_max / n
         return np.array([shift[0], shift[1], 0.0])
 
+    def angular_momentum_matrix(self, data: mujoco.MjData, com: np.ndarray) -> np.ndarray:
+        """A (3 x NV): the robot's angular momentum about its CoM ``com`` is A @ qvel (world frame)."""
+        m, A = self.model, np.zeros((3, NV))
+        for b in self._robot_bodies:
+            mujoco.mj_jacBodyCom(m, data, self._jp, self._jr, b)
+            R = data.ximat[b].reshape(3, 3)
+            inertia = (R * m.body_inertia[b]) @ R.T
+            A += inertia @ self._jr[:, self.dofs] + m.body_mass[b] * _skew(data.xipos[b] - com) @ self._jp[:, self.dofs]
+        return A
+
     def reference_qpos(self, t: float) -> np.ndarray:
         """Planned 36-D robot configuration at trajectory time t (linear interpolation)."""
         i, s = self.traj.index_at(t)
@@ -763,6 +787,7 @@ class WholeBodyController:
         self._swing_start.clear()
         self._admittance.clear()
         self._com_shift[:] = 0.0
+        self._angmom_prev = None
 
     def observe(self, data: mujoco.MjData) -> None:
         """Read the contact forces of the step just taken (call after ``mj_step2``: only then do
@@ -915,6 +940,15 @@ class WholeBodyController:
                 com_ref[:2] += a * (mid[:2] - com_ref[:2])
         b = dlerp(R_.com_a) + g.com_kp * (com_ref - com) + g.com_kd * (dlerp(R_.com_v) - Jc @ v)
         task(Jc, b, g.w_com)
+        # --- centroidal angular momentum (A_dot v by a finite difference over the control period)
+        if g.w_angular_momentum > 0 and R_.angmom is not None:
+            A_L = self.angular_momentum_matrix(data, com)
+            prev = self._angmom_prev
+            dt = float(data.time) - prev[0] if prev is not None else 0.0
+            bias = (A_L - prev[1]) @ v / dt if dt > 0 else np.zeros(3)
+            self._angmom_prev = (float(data.time), A_L)
+            b = dlerp(R_.angmom_rate) + g.angular_momentum_kd * (lerp(R_.angmom) - A_L @ v) - bias
+            task(A_L, b, g.w_angular_momentum)
         # --- pelvis orientation and position
         mujoco.mj_jacBody(m, data, self._jp, self._jr, self.pelvis)
         Rp = data.xmat[self.pelvis].reshape(3, 3)
