@@ -49,10 +49,18 @@ class Grid:
         return len(self.t)
 
 
+def _lifts(phases, i: int) -> bool:
+    """Whether an object is free (carried) in phase i and was not in the phase before it."""
+    before = phases[i - 1].objects if i > 0 else {}
+    return any(mo.mode == "free" and (o not in before or before[o].mode != "free") for o, mo in phases[i].objects.items())
+
+
 def make_grid(prob: Problem) -> Grid:
     ts, ph = [], []
     for i, p in enumerate(prob.phases):
         dt = prob.options.dt_walking if p.phase_type == WALKING else prob.options.dt_stance
+        if p.phase_type != WALKING and prob.options.dt_lift > 0 and _lifts(prob.phases, i):
+            dt = prob.options.dt_lift
         n = max(1, int(math.ceil((p.end - p.start) / dt - 1e-9)))
         for k in range(n):
             ts.append(p.start + (p.end - p.start) * k / n)
