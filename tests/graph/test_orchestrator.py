@@ -140,9 +140,10 @@ def _shm_of_live_processes() -> set[str]:
 
 def test_scenario_overrides_reach_the_sim(tmp_path):
     """Several --set values travel to the sim node as one YAML string parameter (a mapping given to
-    rcl's -p parser unquoted makes it refuse to start)."""
+    rcl's -p parser unquoted makes it refuse to start). 8 s up: the graph counts as up once every node
+    exists, and under load (a fresh clone beside a TO solve) the sim had not built the scenario 1 s later."""
     res = _run(["up", "--scenario", "s2_trolley", "--set", "box_mass=5.0", "--set", "box_yaw=0.6",
-                "--duration", "1", "--run-dir", str(tmp_path)], tmp_path, timeout=180)
+                "--duration", "8", "--run-dir", str(tmp_path)], tmp_path, timeout=180)
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
     sim_log = next(tmp_path.glob("*/logs/lomanip_sim.log")).read_text()
     assert "scenario s2_trolley ready" in sim_log
