@@ -138,8 +138,7 @@ class TOResult:
         """Reconstruct a dense grid: C1 cubic Hermite through the knots for positions (slopes =
         mean of adjacent secant slopes, one-sided at a foot's lift-off and touchdown knots), its
         derivative for velocities, zero-order hold on the knot
-        interval for contact wrenches (the transcription applies forces of knot k on [t_k, t_k+1)),
-        so the centroidal momentum is linear between knots."""
+        interval for contact wrenches (the transcription applies forces of knot k on [t_k, t_k+1))."""
         tk = self.t_knots
         n = int(np.floor((tk[-1] - tk[0]) * rate + 1e-9)) + 1
         t = tk[0] + np.arange(n) / rate
@@ -155,8 +154,7 @@ class TOResult:
         self.joint_positions = X[:, 6:]
         self.joint_velocities = Xd[:, 6:]
         self.com, _ = _hermite(tk, self.com_knots, t, sides)
-        # momentum: linear between knots, the exact integral of the wrenches held over each interval
-        H = np.column_stack([np.interp(t, tk, self.h_knots[:, j]) for j in range(6)])
+        H, _ = _hermite(tk, self.h_knots, t, sides)
         self.linear_momentum, self.angular_momentum = H[:, :3], H[:, 3:]
         idx = np.clip(np.searchsorted(tk, t, side="right") - 1, 0, len(tk) - 1)
         self.forces = {l: v[idx] for l, v in self.forces_knots.items()}
