@@ -279,8 +279,7 @@ def from_to_result(res, phases, scenario: str = "") -> Trajectory:
     objects = {oid: (res.object_positions[oid], np.array([frames.xyzw_to_wxyz(q) for q in res.object_quat_xyzw[oid]]))
                for oid in (res.object_positions or {})}
     t = np.asarray(res.t, float) - float(res.t[0])
-    angmom = getattr(res, "angular_momentum", None)
     return make_trajectory(t, res.joint_names, res.joint_positions, res.joint_velocities, res.base_position, quat,
                            res.base_linear_velocity, res.base_angular_velocity, phases=phases_from_to(phases),
                            forces=forces, torques=torques, objects=objects, scenario=scenario,
-                           angular_momentum=angmom)  # fmt: skip
+                           angular_momentum=res.angular_momentum)  # fmt: skip

@@ -116,10 +116,11 @@ class WbcGains:
     # At 1 on the arms only (the elbows run 0.1-0.18 rad off the plan at 0.1): 1 of 6
     w_posture: float = 0.1
     # centroidal angular momentum about the CoM towards the plan's (Trajectory.angular_momentum,
-    # linear between knots: what the planned contact wrenches give). Why: the dense joint motion
+    # the TO's momentum interpolated between knots). Why: the dense joint motion
     # between knots can carry angular momentum the plan's wrenches do not (S1's lift, docs/to.md
     # session 19); this task lets the QP give up that part of the posture and hand tracking
-    # instead of the balance. 0 = off, or when the trajectory has no momentum
+    # instead of the balance. 0 = off, or when the trajectory has no momentum. Off by default: on
+    # today's plans it did harm (demo pushes 1 of 4 executed against 3 of 4; docs/execution.md, session 20)
     w_angular_momentum: float = 0.0
     angular_momentum_kd: float = 10.0  # 1/s
     w_force: float = 1e-3  # per N^2, towards the planned contact force
