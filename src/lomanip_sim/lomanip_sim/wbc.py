@@ -124,6 +124,17 @@ class WbcGains:
     w_angular_momentum: float = 0.0
     angular_momentum_kd: float = 10.0  # 1/s
     w_force: float = 1e-3  # per N^2, towards the planned contact force
+    # m: a hand in contact presses a face, not a point: the contact may also carry a moment about
+    # the hand site of up to this times its normal force about each tangent (the centre of pressure
+    # anywhere within +- this of the site on the face; the hand box reaches 6.6 / 5.3 cm from it),
+    # and hand_torsion times it about the normal. The TO plans with the same patch (HAND_PATCH_HALF,
+    # HAND_TORSION). Why: S1's lift squeezes the box with 45-65 N along the palm normal at the site,
+    # 0.1 m ahead of the wrist-yaw axis; as a point force that is 4.5-6.5 N m on the 5 N m wrist
+    # yaw, so the QP turned the wrists away and the box slipped out (docs/execution.md, session 21).
+    # 0 = a point force at the site
+    hand_patch_half: float = 0.03
+    hand_torsion: float = 0.01  # m
+    w_hand_moment: float = 1e-2  # per (N m)^2: the centre of pressure stays at the site unless needed
     reg_qdd: float = 1e-5
     reg_force: float = 1e-5
     reg_tau: float = 1e-6
@@ -346,6 +357,8 @@ class WholeBodyController:
         self.t0 = 0.0
         self.status = WbcStatus()
         self.last_forces: dict[str, np.ndarray] = {}
+        #: moment (world, N m) the QP put on each hand contact about its site (hand_patch_half)
+        self.last_hand_moments: dict[str, np.ndarray] = {}
         self._last_tau = np.zeros(NJ)
         self._engaged: dict = {}
         self._last_touch: dict = {}  # hand -> trajectory time its collision box last touched its object
@@ -650,15 +663,20 @@ class WholeBodyController:
         self._normals[id(c)] = out
         return out
 
+    @staticmethod
+    def _tangents(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Two unit tangents of the unit normal ``n`` (t1, t2, n right-handed)."""
+        t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+        t1 /= np.linalg.norm(t1)
+        return t1, np.cross(n, t1)
+
     def _pyramid(self, normal, mu: float) -> np.ndarray:
         """(5,3) rows of a linearised friction cone: 4 tangent rows (<= 0) and the normal; cached per normal."""
         key = (tuple(np.round(np.asarray(normal, float), 9)), mu)
         rows = self._pyramids.get(key)
         if rows is None:
             n = np.asarray(normal, float) / max(np.linalg.norm(normal), 1e-9)
-            t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
-            t1 /= np.linalg.norm(t1)
-            t2 = np.cross(n, t1)
+            t1, t2 = self._tangents(n)
             if self.g.diamond_cone:  # MuJoCo's pyramidal cone for condim 3: edges n +- mu t1, n +- mu t2
                 rows = np.array([t1 + t2 - mu * n, t1 - t2 - mu * n, -t1 + t2 - mu * n, -t1 - t2 - mu * n, n])
             else:
@@ -1000,13 +1018,15 @@ class WholeBodyController:
         hand_points = [(limb, site_J[limb][:3]) for limb in HANDS if limb in contacts and contacts[limb] is not None]
         nfoot = 3 * len(points)
         nf = nfoot + 3 * len(hand_points)
-        nx = NJ + NV + nf
+        nm = 3 * len(hand_points) if g.hand_patch_half > 0 else 0  # hand patch moments, after the forces
+        nx = NJ + NV + nf + nm
         H = np.zeros((nx, nx))
         f = np.zeros(nx)
         H[:NJ, :NJ] = g.reg_tau * np.eye(NJ)
         H[NJ : NJ + NV, NJ : NJ + NV] = Hqq
         f[NJ : NJ + NV] = gq
-        H[NJ + NV :, NJ + NV :] = g.reg_force * np.eye(nf)
+        H[NJ + NV : NJ + NV + nf, NJ + NV : NJ + NV + nf] = g.reg_force * np.eye(nf)
+        H[NJ + NV + nf :, NJ + NV + nf :] = g.w_hand_moment * np.eye(nm)
         # force tracking: per foot, the sum of its corner forces -> planned force
         by_limb: dict[str, list[int]] = {}
         for k, (limb, *_r) in enumerate(points):
@@ -1020,8 +1040,8 @@ class WholeBodyController:
             Sel = np.zeros((3, nf))
             for k in ks:
                 Sel[:, 3 * k : 3 * k + 3] = np.eye(3)
-            H[NJ + NV :, NJ + NV :] += g.w_force * Sel.T @ Sel
-            f[NJ + NV :] += -g.w_force * Sel.T @ f_ref
+            H[NJ + NV : NJ + NV + nf, NJ + NV : NJ + NV + nf] += g.w_force * Sel.T @ Sel
+            f[NJ + NV : NJ + NV + nf] += -g.w_force * Sel.T @ f_ref
 
         # dynamics: M qdd - S^T tau - Jc^T f = -h
         mujoco.mj_fullM(m, data, self._M)
@@ -1032,6 +1052,9 @@ class WholeBodyController:
         Aeq[:, NJ : NJ + NV] = Mr
         for k, cj in enumerate([p[1] for p in points] + [hp[1] for hp in hand_points]):
             Aeq[:, NJ + NV + 3 * k : NJ + NV + 3 * k + 3] = -cj.T
+        if nm:
+            for k, (limb, _j) in enumerate(hand_points):
+                Aeq[:, NJ + NV + nf + 3 * k : NJ + NV + nf + 3 * k + 3] = -site_J[limb][3:].T
         beq = -h
         # hands: the planned force (on the robot) is imposed as feed-forward, not chosen by the QP,
         # so the QP can never lean on a free object as if it were a support
@@ -1064,10 +1087,19 @@ class WholeBodyController:
             c = NJ + NV + 3 * k
             Ain[5 * k : 5 * k + 5, c : c + 3] = self._pyramid(n, mu)
             bu[5 * k + 4], bl[5 * k + 4] = g.f_max, fmin
-        A_all = np.vstack([Aeq, Ahand, Ain])
-        upper = np.concatenate([self.limits, beq, bhand, bu])
-        lower = np.concatenate([-self.limits, beq, bhand, bl])
-        sense = np.concatenate([np.zeros(NJ), np.full(NV + len(bhand), 5), np.zeros(len(bu))]).astype(np.int32)
+        Amom = np.zeros((nm, nx))
+        mlim = np.zeros(nm)
+        if nm:  # the patch moment's bounds: from the normal force fed forward (0 when nothing is)
+            for k, (limb, _j) in enumerate(hand_points):
+                n = self._contact_normals(contacts[limb])[i]
+                t1, t2 = self._tangents(n)
+                fn = max(0.0, float(n @ bhand[3 * k : 3 * k + 3]))
+                Amom[3 * k : 3 * k + 3, NJ + NV + nf + 3 * k : NJ + NV + nf + 3 * k + 3] = np.array([t1, t2, n])
+                mlim[3 * k : 3 * k + 3] = fn * np.array([g.hand_patch_half, g.hand_patch_half, g.hand_torsion])
+        A_all = np.vstack([Aeq, Ahand, Ain, Amom])
+        upper = np.concatenate([self.limits, beq, bhand, bu, mlim])
+        lower = np.concatenate([-self.limits, beq, bhand, bl, -mlim])
+        sense = np.concatenate([np.zeros(NJ), np.full(NV + len(bhand), 5), np.zeros(len(bu) + nm)]).astype(np.int32)
         key = tuple(sorted(by_limb))
         x, _fval, flag, info = daqp.solve(H, f, A_all, upper, lower, sense)
         ok = flag >= 1 and np.all(np.isfinite(x))
@@ -1077,6 +1109,8 @@ class WholeBodyController:
             tau = np.clip(x[:NJ], -self.limits, self.limits)
             self._last_tau = tau
             self.last_forces = {limb: sum(x[NJ + NV + 3 * k : NJ + NV + 3 * k + 3] for k in ks) for limb, ks in by_limb.items()}
+            self.last_hand_moments = {limb: x[NJ + NV + nf + 3 * k : NJ + NV + nf + 3 * k + 3]
+                                      for k, (limb, _j) in enumerate(hand_points)} if nm else {}
             for limb in HANDS:
                 if limb in planned and planned[limb] is not None and limb not in by_limb:
                     self.last_forces[limb] = np.zeros(3)  # a released hand: no contact force
