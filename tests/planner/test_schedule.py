@@ -145,3 +145,39 @@ def test_steps_follow_the_horizontal_distance_and_the_lift_opens_the_next_subtas
     assert [p.end - p.start for p in steps] == pytest.approx([tm.step, tm.step, tm.step_up, tm.step_up])
     # the last subtask grabs (no lift): the basket never moves
     assert not any("basket" in p.objects for p in ph)
+
+
+def test_a_long_carry_off_the_heading_walks_forwards():
+    """A carry 1.3 m away at 50 degrees off the robot's heading (S1's): the intermediate footholds
+    lie either side of the route across the turned heading (walking forwards), not side-stepping
+    along the straight line between the stances with the feet across the start heading."""
+    import math
+
+    from lomanip_to.route import walking_heading
+
+    q = G1_STAND_QPOS.copy()
+    subtasks = [SubtaskKeyframe(0, "pick up the box", q, _feet(0.0) + _hands(0.42, 0.15, "box")),
+                SubtaskKeyframe(1, "place the box next to the shelf", q,
+                                [LimbTarget(f, np.array([0.85, 1.0 + y, 0.0]), object_id="floor")
+                                 for f, y in (("left_foot", 0.12), ("right_foot", -0.12))] + _hands(1.27, 0.15, "box", ),
+                                placement=PlacementGoal("box", (1.27, 1.0, 0.15), 0.0))]
+    stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+    sched = plan_schedule(stance, subtasks, Timing())
+    carry = [ph for ph in sched.phases if ph.subtask_index == 1 and ph.phase_type != WALKING
+             and {"left_foot", "right_foot"} <= set(ph.contacts)]
+    pairs = []
+    for ph in carry:
+        pair = (tuple(ph.contacts["left_foot"].position[:2]), tuple(ph.contacts["right_foot"].position[:2]))
+        if not pairs or pairs[-1] != pair:
+            pairs.append(pair)
+    # the middle double stances: the feet's line is across a heading turned towards the travel
+    # direction (atan2(1.0, 0.85) = 0.87 rad), not across the start heading (0)
+    mid = pairs[len(pairs) // 2]
+    lat = np.subtract(mid[0], mid[1])
+    heading = math.atan2(lat[1], lat[0]) - math.pi / 2
+    assert heading > 0.5
+    assert abs(heading - math.atan2(1.0, 0.85)) < 0.35
+    # the first and last stances are the keyframes' (facing +x)
+    assert pairs[0][0][1] - pairs[0][1][1] == pytest.approx(0.24, abs=1e-6)
+    assert pairs[-1][0] == pytest.approx((0.85, 1.12)) and pairs[-1][1] == pytest.approx((0.85, 0.88))
+    assert walking_heading(np.array([[0.0, 0.0], [0.85, 1.0]]), 0.5, 0.0, 0.0) > 0.5

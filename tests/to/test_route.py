@@ -6,7 +6,8 @@ import pytest
 
 from lomanip_to.discretize import ProblemData
 from lomanip_to.fixtures import load_problem
-from lomanip_to.route import ROUTE_CLEARANCE, Footprint, point_along, shortest_route
+from lomanip_to.route import (ROUTE_CLEARANCE, TURN_SPAN, Footprint, point_along, shortest_route, turns,
+                              walking_heading)
 
 
 def _clearance(route: np.ndarray, fp: Footprint) -> float:
@@ -66,3 +67,28 @@ def test_s2_walk_to_the_handle_goes_round_the_trolley(s2, g1):
     # the warm start follows it: on the walk round (8.8-15.8 s) the base keeps clear of the trolley
     walk = (data.grid.t >= 8.8) & (data.grid.t <= 15.8)
     assert min(fp.distance(x[:2]) for x in data.x_guess[walk]) > 0.2
+
+
+def test_a_long_walk_off_the_heading_turns_to_walk_forwards():
+    """S1's carry: 1.25 m at 53 degrees off the heading. The heading turns to the travel direction
+    over the first TURN_SPAN of the walk, holds it, and turns back to the end heading; short walks
+    and walks along the heading interpolate linearly."""
+    route = np.array([[0.3, 0.0], [1.05, 1.0]])
+    th = np.arctan2(1.0, 0.75)
+    assert turns(route, 0.0, 0.0)
+    h = [walking_heading(route, s, 0.0, 0.0) for s in np.linspace(0, 1, 101)]
+    assert h[0] == pytest.approx(0.0) and h[-1] == pytest.approx(0.0)
+    assert walking_heading(route, TURN_SPAN, 0.0, 0.0) == pytest.approx(th)
+    assert walking_heading(route, 0.5, 0.0, 0.0) == pytest.approx(th)
+    assert np.max(np.abs(np.diff(h))) < 0.06  # smooth: no jump of heading along the walk
+    # along the heading, short, or backwards: linear
+    assert not turns(np.array([[0.0, 0.0], [1.5, 0.1]]), 0.0, 0.0)
+    assert not turns(np.array([[0.0, 0.0], [0.5, 0.5]]), 0.0, 0.0)
+    assert not turns(np.array([[0.0, 0.0], [-1.5, 0.0]]), 0.0, 0.0)
+    assert walking_heading(np.array([[0.0, 0.0], [1.5, 0.1]]), 0.5, 0.0, 0.4) == pytest.approx(0.2)
+    # a walk ending turned: it walks forwards first, then turns (wrap-around handled)
+    route = np.array([[0.0, 0.0], [1.5, 0.0]])
+    assert turns(route, 0.0, -1.57)
+    assert walking_heading(route, 0.5, 0.0, -1.57) == pytest.approx(0.0)
+    assert walking_heading(route, 1.0, 0.0, -1.57) == pytest.approx(-1.57)
+    assert walking_heading(route, 0.5, 2 * np.pi, 2 * np.pi - 1.57) == pytest.approx(2 * np.pi)

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lomanip_to.problem import FLOOR, STANCE, WALKING, ContactPhase, ContactSpec, Keyframe, ObjectMotion, PlacementGoal
-from lomanip_to.route import Footprint, footprint_of, point_along, route_length, shortest_route
+from lomanip_to.route import Footprint, footprint_of, point_along, route_length, shortest_route, turns, walking_heading
 
 from .retargeting import FEET, HANDS, LimbTarget
 
@@ -269,6 +269,9 @@ class _Builder:
         yaw1 = yaw0 + math.remainder(_stance_yaw(end["left_foot"], end["right_foot"]) - yaw0, 2 * math.pi)
         # lead with the foot that has further to go; alternate feet, each moving 1/n of its way
         order = sorted(moving, key=lambda f: -moves[f])
+        # a long walk far off the robot's heading turns to walk forwards (lomanip_to.route.turns): the
+        # footholds lie beside the route, across the heading the TO's nominal turns with
+        turning = turns(route, yaw0, yaw1)
         for i in range(1, n + 1):
             for f in order:
                 other = "right_foot" if f == "left_foot" else "left_foot"
@@ -276,7 +279,11 @@ class _Builder:
                                  or abs(targets[f][0][2] - starts[f][2]) > 0.02)
                 self.add(tm.step_up if up else tm.step, subtask, WALKING, stance_foot=other, objects=objects)
                 pos = starts[f] + (i / n) * (targets[f][0] - starts[f])
-                if len(route) > 2 and i < n:   # round an obstacle: beside the route, not on the line
+                if turning and i < n:
+                    yaw = walking_heading(route, i / n, yaw0, yaw1)
+                    side = 1.0 if f == "left_foot" else -1.0
+                    pos[:2] = point_along(route, i / n) + side * half_width * np.array([-math.sin(yaw), math.cos(yaw)])
+                elif len(route) > 2 and i < n:   # round an obstacle: beside the route, not on the line
                     yaw = yaw0 + (i / n) * (yaw1 - yaw0)
                     side = 1.0 if f == "left_foot" else -1.0
                     pos[:2] = point_along(route, i / n) + side * half_width * np.array([-math.sin(yaw), math.cos(yaw)])

@@ -14,7 +14,7 @@ import numpy as np
 
 from .model import FEET, HANDS, LIMBS, SOLE_CENTER, SOLE_FORCE_POINTS, G1Model, rot_to_rpy, rpy_to_rot
 from .problem import FLOOR, STANCE, WALKING, Problem, SceneObject
-from .route import footprint_of, point_along, shortest_route
+from .route import footprint_of, point_along, shortest_route, walking_heading
 from .transcription import G, Structure, Window
 
 INF = np.inf
@@ -459,7 +459,7 @@ class ProblemData:
                 ws = 1.0 - wa - wb
                 x = wa * xa + wb * xb + ws * stand
                 x[[0, 1]] = point_along(self.routes[i], s)
-                x[5] = (1 - s) * xa[5] + s * xb[5]
+                x[5] = walking_heading(self.routes[i], s, xa[5], xb[5])  # a long sideways walk turns
                 sup = (1 - s) * h[i] + s * h[i + 1]
                 x[2] = wa * xa[2] + wb * xb[2] + ws * (stand[2] - h_stand + sup)
                 X[k] = x

@@ -158,3 +158,48 @@ def point_along(route: np.ndarray, s: float) -> np.ndarray:
             return route[i] + (route[i + 1] - route[i]) * (min(target, L) / max(L, 1e-12))
         target -= L
     return route[-1].copy()
+
+
+#: a walk of at least this length (m) whose travel direction is more than TURN_MIN_ANGLE (rad) off
+#: the heading at its start or end turns towards the travel direction and walks forwards; up to
+#: TURN_MAX_ANGLE (further round, a turn costs more than it saves). Why: S1's carry went 1.25 m at 53
+#: degrees off the robot's heading, so the plans crab-walked with 0.25 m side steps, rolled the
+#: pelvis 0.4-0.8 rad and swung the left thigh into the box (docs/to.md, session 21)
+TURN_MIN_LENGTH = 0.9
+TURN_MIN_ANGLE = 0.5
+TURN_MAX_ANGLE = 2.0
+#: fraction of the walk over which the heading turns to the travel direction (and, at the end,
+#: from it to the final heading)
+TURN_SPAN = 0.4
+
+
+def _smoothstep(u: float) -> float:
+    u = min(max(u, 0.0), 1.0)
+    return u * u * (3.0 - 2.0 * u)
+
+
+def turns(route: np.ndarray, yaw0: float, yaw1: float) -> bool:
+    """Whether a walk along ``route`` from heading ``yaw0`` to ``yaw1`` turns to walk forwards."""
+    if route_length(route) < TURN_MIN_LENGTH:
+        return False
+    d = np.asarray(route[-1], float) - np.asarray(route[0], float)
+    th = math.atan2(d[1], d[0])
+    off = (abs(math.remainder(th - yaw0, 2 * math.pi)), abs(math.remainder(th - yaw1, 2 * math.pi)))
+    return max(off) > TURN_MIN_ANGLE and max(off) < TURN_MAX_ANGLE
+
+
+def walking_heading(route: np.ndarray, s: float, yaw0: float, yaw1: float) -> float:
+    """Base heading at fraction ``s`` of a walk along ``route`` from heading ``yaw0`` to ``yaw1``.
+
+    A walk that :func:`turns` faces its travel direction (the chord of the route) after the first
+    TURN_SPAN of its length and turns to ``yaw1`` over the last (smoothsteps); any other walk
+    interpolates the two headings linearly."""
+    if not turns(route, yaw0, yaw1):
+        return (1.0 - s) * yaw0 + s * yaw1
+    d = np.asarray(route[-1], float) - np.asarray(route[0], float)
+    th = yaw0 + math.remainder(math.atan2(d[1], d[0]) - yaw0, 2 * math.pi)
+    if abs(th + math.remainder(yaw1 - th, 2 * math.pi) - yaw1) > 1e-9:  # yaw1 a turn or more away
+        return (1.0 - s) * yaw0 + s * yaw1
+    if s <= 1.0 - TURN_SPAN:
+        return yaw0 + (th - yaw0) * _smoothstep(s / TURN_SPAN)
+    return th + (yaw1 - th) * _smoothstep((s - (1.0 - TURN_SPAN)) / TURN_SPAN)
