@@ -99,6 +99,10 @@ class Timing:
     release: float = 0.4            # hands still in contact after the object rests
     retract: float = 1.0            # hands back, double support (discretize.STAND_UP_TIME)
     weight_shift: float = 0.4       # double support before the first step of a subtask (it starts at rest)
+    # double support holding a lifted object before the carry's first step (0 = the lift is the
+    # weight shift). Why: S1's plans stood up from the squat and stepped at once; in that first step
+    # they swung the box up to 1.0-1.3 m and rolled the pelvis 0.4-0.8 rad (docs/to.md, session 21)
+    lift_settle: float = 0.4
 
 
 @dataclass
@@ -319,6 +323,8 @@ def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timi
             # the lift doubles as the weight shift before the first step
             b.carried.add(lift_next)
             b.add(tm.manipulate, sk.index)
+            if tm.lift_settle > 0:
+                b.add(tm.lift_settle, sk.index)
             lift_next = None
         feet = {c.limb: (np.asarray(c.position, float), c.object_id) for c in sk.contacts if c.limb in FEET}
         hands = {c.limb: ContactSpec(c.limb, c.object_id, tuple(np.asarray(c.position, float)),
