@@ -283,12 +283,8 @@ class _Builder:
                                  or abs(targets[f][0][2] - starts[f][2]) > 0.02)
                 self.add(tm.step_up if up else tm.step, subtask, WALKING, stance_foot=other, objects=objects)
                 pos = starts[f] + (i / n) * (targets[f][0] - starts[f])
-                if turning and i < n:
-                    yaw = walking_heading(route, i / n, yaw0, yaw1)
-                    side = 1.0 if f == "left_foot" else -1.0
-                    pos[:2] = point_along(route, i / n) + side * half_width * np.array([-math.sin(yaw), math.cos(yaw)])
-                elif len(route) > 2 and i < n:   # round an obstacle: beside the route, not on the line
-                    yaw = yaw0 + (i / n) * (yaw1 - yaw0)
+                if i < n and (turning or len(route) > 2):   # turning, or round an obstacle: beside the route
+                    yaw = walking_heading(route, i / n, yaw0, yaw1) if turning else yaw0 + (i / n) * (yaw1 - yaw0)
                     side = 1.0 if f == "left_foot" else -1.0
                     pos[:2] = point_along(route, i / n) + side * half_width * np.array([-math.sin(yaw), math.cos(yaw)])
                 surface = targets[f][1] if i == n else self.stance.surface(f)

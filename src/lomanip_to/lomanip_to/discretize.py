@@ -14,7 +14,7 @@ import numpy as np
 
 from .model import FEET, HANDS, LIMBS, SOLE_CENTER, SOLE_FORCE_POINTS, G1Model, rot_to_rpy, rpy_to_rot
 from .problem import FLOOR, STANCE, WALKING, Problem, SceneObject
-from .route import footprint_of, point_along, shortest_route, walking_heading
+from .route import footprint_of, point_along, shortest_route, smoothstep, walking_heading
 from .transcription import G, Structure, Window
 
 INF = np.inf
@@ -141,12 +141,6 @@ LIFT_OFF_TURN_RATE = 0.3
 LIFT_OFF_KNOTS = 2
 #: time (s) the nominal takes to stand up after the hands let go at the end of a task or segment
 STAND_UP_TIME = 1.0
-
-
-def _smoothstep(u: float) -> float:
-    """0 below 0, 1 above 1, 3u^2 - 2u^3 between: a blend that starts and ends at rest."""
-    u = min(1.0, max(0.0, u))
-    return u * u * (3.0 - 2.0 * u)
 
 
 def _relative_to_base(x: np.ndarray, pose: np.ndarray) -> np.ndarray:
@@ -452,8 +446,8 @@ class ProblemData:
                 if not ta - 1e-9 <= tk <= tb + 1e-9:
                     continue
                 s = self._walk_fraction(ta, tk, tb)
-                wa = 1.0 - _smoothstep((tk - holds[i][1]) / blend_time)
-                wb = 1.0 - _smoothstep((holds[i + 1][0] - tk) / blend_time)
+                wa = 1.0 - smoothstep((tk - holds[i][1]) / blend_time)
+                wb = 1.0 - smoothstep((holds[i + 1][0] - tk) / blend_time)
                 if wa + wb > 1.0:
                     wa, wb = wa / (wa + wb), wb / (wa + wb)
                 ws = 1.0 - wa - wb
@@ -471,7 +465,7 @@ class ProblemData:
             while k_free > 0 and hands_free[k_free - 1] and t[k_free - 1] >= ta - 1e-9:
                 k_free -= 1
             for k in range(k_free, len(t)):
-                ws = _smoothstep((t[k] - t[k_free]) / STAND_UP_TIME)
+                ws = smoothstep((t[k] - t[k_free]) / STAND_UP_TIME)
                 x = (1 - ws) * xa + ws * stand
                 x[[0, 1, 5]] = xa[[0, 1, 5]]
                 x[2] = (1 - ws) * xa[2] + ws * (stand[2] - h_stand + h[-1])
@@ -980,7 +974,7 @@ class ProblemData:
         # rise to 'top' in the first 40 % of the swing, stay, come down in the last 40 %: smoothsteps,
         # so the foot leaves and lands at rest (the earlier sine bump clipped at 1.6x put a foot 61 %
         # of the way up to S1's box top 0.1 s after lift-off, and the TO whipped the hips to follow)
-        bump = min(_smoothstep(s / 0.4), _smoothstep((1.0 - s) / 0.4))
+        bump = min(smoothstep(s / 0.4), smoothstep((1.0 - s) / 0.4))
         base = (1 - s) * h0 + s * h1
         return base + (top - base) * bump
 

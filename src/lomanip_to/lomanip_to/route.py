@@ -173,8 +173,9 @@ TURN_MAX_ANGLE = 2.0
 TURN_SPAN = 0.4
 
 
-def _smoothstep(u: float) -> float:
-    u = min(max(u, 0.0), 1.0)
+def smoothstep(u: float) -> float:
+    """0 below 0, 1 above 1, 3u^2 - 2u^3 between: a blend that starts and ends at rest."""
+    u = min(1.0, max(0.0, u))
     return u * u * (3.0 - 2.0 * u)
 
 
@@ -201,5 +202,5 @@ def walking_heading(route: np.ndarray, s: float, yaw0: float, yaw1: float) -> fl
     if abs(th + math.remainder(yaw1 - th, 2 * math.pi) - yaw1) > 1e-9:  # yaw1 a turn or more away
         return (1.0 - s) * yaw0 + s * yaw1
     if s <= 1.0 - TURN_SPAN:
-        return yaw0 + (th - yaw0) * _smoothstep(s / TURN_SPAN)
-    return th + (yaw1 - th) * _smoothstep((s - (1.0 - TURN_SPAN)) / TURN_SPAN)
+        return yaw0 + (th - yaw0) * smoothstep(s / TURN_SPAN)
+    return th + (yaw1 - th) * smoothstep((s - (1.0 - TURN_SPAN)) / TURN_SPAN)
