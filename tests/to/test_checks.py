@@ -1,4 +1,4 @@
-"""lomanip_to.checks.foot_slip: a foot that carries force over an interval must not move over it."""
+"""lomanip_to.checks: feet that must not slide, penetrations, placement goals and grips."""
 
 from types import SimpleNamespace
 
@@ -107,3 +107,25 @@ def test_rolling_rows_are_on_only_while_rolling(g1):
             assert np.allclose(ubg[wheel, k], f if rolling else np.inf), (oid, k)
     assert any(data.obj_mode(k, "trolley") == "rolling" for k in range(data.grid.K))
     assert any(data.obj_mode(k, "box") == "free" for k in range(data.grid.K))
+
+
+def test_a_hand_turning_on_the_box_it_holds_is_caught(g1):
+    """A pressed palm sticks: turning the wrist while the hand holds the box fails the check (S1's
+    plans turned a hand up to 2.9 rad on the box before the grip rows)."""
+    from lomanip_to.checks import TOL, hand_grip_rotation
+
+    K = 4
+    x = np.tile(g1.x_stand(), (K, 1))
+    box = np.tile([0.4, 0.0, 0.5, 0.0, 0.0, 0.0], (K, 1))
+    objs = {"left_hand": ["", "box", "box", "box"], "right_hand": [""] * K}
+    res = SimpleNamespace(t_knots=np.arange(K) * 0.1, x_knots=x, object_pose_knots={"box": box},
+                          contact_objects_knots=objs)
+    assert hand_grip_rotation(g1, res)[0] < 1e-9
+    # the box and the body turn together: the grip is unchanged
+    box[:, 5] = x[:, 5] = [0.0, 0.2, 0.4, 0.6]
+    assert hand_grip_rotation(g1, res)[0] < 1e-9
+    # the wrist yaw turns 0.3 rad at the last knot
+    x[3, 6 + g1.joint_names.index("left_wrist_yaw_joint")] += 0.3
+    value, (hand, t) = hand_grip_rotation(g1, res)
+    assert value == pytest.approx(0.3, abs=1e-6) and value > TOL["hand_grip_rotation"]
+    assert hand == "left_hand" and t == pytest.approx(0.3)

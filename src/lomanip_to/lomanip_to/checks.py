@@ -24,6 +24,7 @@ TOL = {
     "placement": 0.05,  # m, object position at its placement goal's time
     "placement_yaw": 0.15,  # rad
     "momentum_between_knots": 1.0,  # kg m^2/s, see momentum_between_knots
+    "hand_grip_rotation": 0.02,  # rad, see hand_grip_rotation
 }
 
 
@@ -218,6 +219,42 @@ def foot_slip(res):
     return worst, where
 
 
+def hand_grip_rotation(model: G1Model, res):
+    """Max angle (rad) a hand turns on the surface it holds, from the contact's first knot.
+
+    A pressed patch sticks: the hand's orientation in the frame of the object it touches (the world
+    for a fixed surface) stays what it was when the contact began; on a bar it may roll about the
+    bar (``transcription.grip_axes``).
+    """
+    from .transcription import grip_axes
+
+    worst, where = 0.0, ("", 0.0)
+    normals = getattr(res, "normals_knots", None) or {}
+    for h in HANDS:
+        obj = res.contact_objects_knots[h]
+        ref = None
+        for k in range(len(obj)):
+            if not obj[k]:
+                ref = None
+                continue
+            pose = res.object_pose_knots.get(obj[k])
+            R_obj = rpy_to_rot(pose[k, 3:6]) if pose is not None else np.eye(3)
+            R_rel = R_obj.T @ model.numeric(res.x_knots[k])["limbs"][h][1]
+            if ref is None or obj[k] != obj[k - 1]:
+                ref = R_rel
+                n = normals[h][k] if h in normals else np.zeros(3)
+                held = grip_axes(R_obj.T @ n) if np.any(n) else np.eye(3)
+            turn = R_rel @ ref.T  # from the first knot's grip to this one, in the object's frame
+            ang = float(np.arccos(np.clip((np.trace(turn) - 1) / 2, -1.0, 1.0)))
+            if ang > 1e-9:
+                axis = np.array([turn[2, 1] - turn[1, 2], turn[0, 2] - turn[2, 0], turn[1, 0] - turn[0, 1]])
+                axis = axis / max(np.linalg.norm(axis), 1e-12)
+                ang *= float(np.linalg.norm(held @ axis))
+            if ang > worst:
+                worst, where = ang, (h, res.t_knots[k])
+    return worst, where
+
+
 def joint_limit_violation(model: G1Model, res):
     """Worst excess over the joint ranges and over the coupled hip limit (after the start knot)."""
     th = res.x_knots[:, 6:]
@@ -334,6 +371,8 @@ def run_checks(model: G1Model, data, res) -> dict:
     between, tb = penetration_between_knots(model, data, res)
     out["penetration"] = {"value": pen, "where": f"t={res.stats.max_penetration_time:.2f}", "ok": pen <= TOL["penetration"],
                           "between_knots": between, "between_knots_where": f"t={tb:.2f}"}
+    v, w = hand_grip_rotation(model, res)
+    out["hand_grip_rotation"] = {"value": v, "where": f"{w[0]} t={w[1]:.2f}", "ok": v <= TOL["hand_grip_rotation"]}
     v, w = joint_limit_violation(model, res)
     out["joint_limits"] = {"value": v, "where": f"{w[0]} t={w[1]:.2f}", "ok": v <= TOL["joint_limits"]}
     v, w, base, rnea = torque_ratio(model, res)

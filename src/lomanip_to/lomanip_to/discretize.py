@@ -15,7 +15,7 @@ import numpy as np
 from .model import FEET, HANDS, LIMBS, SOLE_CENTER, SOLE_FORCE_POINTS, G1Model, rot_to_rpy, rpy_to_rot
 from .problem import FLOOR, STANCE, WALKING, Problem, SceneObject
 from .route import footprint_of, point_along, shortest_route, smoothstep, walking_heading
-from .transcription import G, Structure, Window
+from .transcription import G, Structure, Window, grip_axes
 
 INF = np.inf
 #: clearance (m) of the foot and shin spheres from objects in the hard collision rows.  Why: the
@@ -725,6 +725,9 @@ class ProblemData:
                     rows(f"{h} contact position", k, -INF, INF)
                 if ch is None or last or self.contact(k + 1, h) is not None:
                     rows(f"{h} release: still at the contact", k, -INF, INF)
+                chn = None if last else self.contact(k + 1, h)
+                if ch is None or chn is None or chn.object_id != ch.object_id:
+                    rows(f"{h} grip: no rotation on the surface", k, -INF, INF)
                 rows(f"{h} friction cone", k, 0 if self.contact(k, h) is not None else -INF, INF)
                 rows(f"{h} patch moment", k, 0 if self.contact(k, h) is not None else -INF, INF)
             for oid, j in self.midx.items():
@@ -984,6 +987,7 @@ class ProblemData:
         sel = np.zeros(n_obj + 1)
         if c is None:
             col[P[f"{h}_sel"]] = sel
+            col[P[f"{h}_grip_axes"]] = np.eye(3).reshape(-1)
             col[P[f"{h}_n"]] = [0, 0, 1]
             col[P[f"{h}_t1"]] = [1, 0, 0]
             col[P[f"{h}_t2"]] = [0, 1, 0]
@@ -1012,6 +1016,7 @@ class ProblemData:
         t2 = np.cross(n, t1)
         col[P[f"{h}_sel"]] = sel
         col[P[f"{h}_loc"]] = loc
+        col[P[f"{h}_grip_axes"]] = grip_axes(n).reshape(-1, order="F")
         col[P[f"{h}_n"]] = n
         col[P[f"{h}_t1"]] = t1
         col[P[f"{h}_t2"]] = t2

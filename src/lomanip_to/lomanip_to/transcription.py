@@ -18,9 +18,9 @@ Knot rows: r_k = CoM(x_k); [m c_k; m kk_k] = A(x_k) xd_k (centroidal momentum ma
 Contacts: sole on the surface plane and level (patch orientation), centre inside the surface
 rectangle, no slip between knots (xy and yaw; at lift-off also z: the force u_k of the last
 contact knot acts over [t_k, t_k+1], so the sole stays planted until t_k+1), corner forces in a linearised (inner pyramid)
-friction cone; hands: point on the object (relative to the object's pose when it moves) and force in
-the linearised cone of the object's surface normal; the object receives the opposite force (Newton's
-third law).  Objects: single rigid bodies (linear + angular momentum), supported/rolling patch
+friction cone; hands: point on the object (relative to the object's pose when it moves), orientation
+on the object held from knot to knot (a sticking patch), force in the linearised cone of the object's
+surface normal and a patch moment; the object receives the opposite wrench (Newton's third law).  Objects: single rigid bodies (linear + angular momentum), supported/rolling patch
 contacts, nonholonomic rear axle, rigid attachment.
 Joint torques: the 26 hip-to-ankle and shoulder-to-wrist joints and the 3 waist joints,
 quasi-static (gravity of the links beyond the joint plus the contact wrenches they carry; the distal
@@ -60,6 +60,24 @@ HAND_TORSION = 0.01
 HAND_MOMENT_COST = 100.0
 #: scale of the wheels' dissipation rows (force in robot weights x velocity in m/s is ~1e-3)
 ROLLING_DISSIPATION_SCALE = 100.0
+#: a hand contact whose normal (object frame) is this close to a face axis sits on a flat face
+FLAT_FACE_COS = 0.99
+
+
+def grip_axes(n_local) -> np.ndarray:
+    """3 x 3 projector onto the rotations a hand's grip may not make on a surface of normal
+    ``n_local`` (object frame): none on a flat face (identity); on a bar, whose surface normal is
+    oblique to the object's faces and square to one axis (the trolley's handle, a cylinder), the
+    hand may roll about that axis."""
+    n = np.asarray(n_local, float)
+    n = n / np.linalg.norm(n)
+    if np.max(np.abs(n)) >= FLAT_FACE_COS:
+        return np.eye(3)
+    i = int(np.argmin(np.abs(n)))
+    if abs(n[i]) > 1.0 - FLAT_FACE_COS:
+        return np.eye(3)
+    a = np.eye(3)[i]
+    return np.eye(3) - np.outer(a, a)
 
 
 @dataclass(frozen=True)
@@ -122,6 +140,7 @@ def par_layout(st: Structure) -> Layout:
         P.add(f"{h}_n", 3)
         P.add(f"{h}_t1", 3)
         P.add(f"{h}_t2", 3)
+        P.add(f"{h}_grip_axes", 9)  # 3 x 3 (column-major): rotations of the grip that are held
         P.add(f"{h}_w_track", 1)
     for j in range(st.n_obj):
         P.add(f"o{j}_m", 1)
@@ -337,12 +356,26 @@ class Window:
             # pressure inside the patch (|tau.t| <= half size * normal force), the moment about the
             # normal is bounded by torsional friction.  Without it two point grips cannot exert any
             # torque about the line between them (S2's carried box).  Named simplification: the
-            # hand's orientation is not constrained to lie flat on the face; the bounds assume it.
+            # hand's orientation is not constrained to lie flat on the face (only to keep the
+            # orientation it has when the contact begins, below); the bounds assume it flat.
             tau = wa[f"tau_{h}"]
             a = HAND_PATCH_HALF
             add(f"{h} patch moment", ca.vertcat(a * un - ca.dot(tau, t1), a * un + ca.dot(tau, t1),
                                                 a * un - ca.dot(tau, t2), a * un + ca.dot(tau, t2),
                                                 HAND_TORSION * un - ca.dot(tau, n), HAND_TORSION * un + ca.dot(tau, n)))
+            # the grip sticks: the hand keeps its orientation on the surface from knot to knot (a
+            # pressed patch neither rolls nor spins under friction). Without it S1's plans turned
+            # the left hand 56 degrees against the box in the lift's first 0.1 s and 60-88 degrees
+            # by the carry, while the box barely moved; no executed grasp held through it
+            # (docs/to.md, session 22). Rows: the sine-vector, in the surface's frame, of the hand's
+            # rotation there from knot a to b, times {h}_grip_axes (the axes it may not turn about:
+            # all three on a face; on a bar it may roll about the bar, see discretize._hand_params)
+            Rsel_b = sel[0] * ca.SX.eye(3)
+            for j in range(M):
+                Rsel_b = Rsel_b + sel[j + 1] * objs_b[j][2]
+            E = Rsel_b.T @ limbs_b[h][1] @ limbs[h][1].T @ Rsel
+            turn = 0.5 * ca.vertcat(E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1])
+            add(f"{h} grip: no rotation on the surface", ca.reshape(pp[f"{h}_grip_axes"], 3, 3) @ turn)
             for j in range(M):
                 obj_forces[j].append((pt, -sel[j + 1] * u))
                 obj_moments[j].append(-sel[j + 1] * tau)
