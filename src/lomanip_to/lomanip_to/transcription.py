@@ -20,8 +20,9 @@ rectangle, no slip between knots (xy and yaw; at lift-off also z: the force u_k 
 contact knot acts over [t_k, t_k+1], so the sole stays planted until t_k+1), corner forces in a linearised (inner pyramid)
 friction cone; hands: point on the object (relative to the object's pose when it moves), orientation
 on the object held from knot to knot (a sticking patch), force in the linearised cone of the object's
-surface normal and a patch moment; the object receives the opposite wrench (Newton's third law).  Objects: single rigid bodies (linear + angular momentum), supported/rolling patch
-contacts, nonholonomic rear axle, rigid attachment.
+surface normal and a patch moment; the object receives the opposite wrench (Newton's third law).
+Objects: single rigid bodies (linear + angular momentum), supported/rolling patch contacts,
+nonholonomic rear axle, rigid attachment.
 Joint torques: the 26 hip-to-ankle and shoulder-to-wrist joints and the 3 waist joints,
 quasi-static (gravity of the links beyond the joint plus the contact wrenches they carry; the distal
 links' inertia is left out and covered by a margin), within a fraction of the G1's limits; the waist
@@ -65,10 +66,10 @@ FLAT_FACE_COS = 0.99
 
 
 def grip_axes(n_local) -> np.ndarray:
-    """3 x 3 projector onto the rotations a hand's grip may not make on a surface of normal
-    ``n_local`` (object frame): none on a flat face (identity); on a bar, whose surface normal is
+    """3 x 3 projector onto the rotations a hand's grip holds on a surface of normal ``n_local``
+    (object frame). On a flat face it holds all three (identity). On a bar, whose surface normal is
     oblique to the object's faces and square to one axis (the trolley's handle, a cylinder), the
-    hand may roll about that axis."""
+    hand may roll about that axis: the projector leaves it out."""
     n = np.asarray(n_local, float)
     n = n / np.linalg.norm(n)
     if np.max(np.abs(n)) >= FLAT_FACE_COS:
