@@ -226,10 +226,13 @@ def hand_grip_rotation(model: G1Model, res):
     for a fixed surface) stays what it was when the contact began; on a bar it may roll about the
     bar (``transcription.grip_axes``).
     """
+    import pinocchio as pin
+
     from .transcription import grip_axes
 
     worst, where = 0.0, ("", 0.0)
     normals = getattr(res, "normals_knots", None) or {}
+    limbs = {}  # knot -> limb frames, evaluated once for both hands
     for h in HANDS:
         obj = res.contact_objects_knots[h]
         ref = None
@@ -237,19 +240,17 @@ def hand_grip_rotation(model: G1Model, res):
             if not obj[k]:
                 ref = None
                 continue
+            if k not in limbs:
+                limbs[k] = model.numeric(res.x_knots[k])["limbs"]
             pose = res.object_pose_knots.get(obj[k])
             R_obj = rpy_to_rot(pose[k, 3:6]) if pose is not None else np.eye(3)
-            R_rel = R_obj.T @ model.numeric(res.x_knots[k])["limbs"][h][1]
+            R_rel = R_obj.T @ limbs[k][h][1]
             if ref is None or obj[k] != obj[k - 1]:
                 ref = R_rel
                 n = normals[h][k] if h in normals else np.zeros(3)
                 held = grip_axes(R_obj.T @ n) if np.any(n) else np.eye(3)
-            turn = R_rel @ ref.T  # from the first knot's grip to this one, in the object's frame
-            ang = float(np.arccos(np.clip((np.trace(turn) - 1) / 2, -1.0, 1.0)))
-            if ang > 1e-9:
-                axis = np.array([turn[2, 1] - turn[1, 2], turn[0, 2] - turn[2, 0], turn[1, 0] - turn[0, 1]])
-                axis = axis / max(np.linalg.norm(axis), 1e-12)
-                ang *= float(np.linalg.norm(held @ axis))
+            # the turn from the first knot's grip to this one, as a rotation vector in the object's frame
+            ang = float(np.linalg.norm(held @ pin.log3(R_rel @ ref.T)))
             if ang > worst:
                 worst, where = ang, (h, res.t_knots[k])
     return worst, where

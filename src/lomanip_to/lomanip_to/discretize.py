@@ -721,15 +721,15 @@ class ProblemData:
                 rows(f"{f} friction cone", k, 0 if c is not None else -INF, INF)
             for h in HANDS:
                 ch = self.contact(k, h)
+                chn = None if last else self.contact(k + 1, h)
                 if ch is None:
                     rows(f"{h} contact position", k, -INF, INF)
-                if ch is None or last or self.contact(k + 1, h) is not None:
+                if ch is None or last or chn is not None:
                     rows(f"{h} release: still at the contact", k, -INF, INF)
-                chn = None if last else self.contact(k + 1, h)
                 if ch is None or chn is None or chn.object_id != ch.object_id:
                     rows(f"{h} grip: no rotation on the surface", k, -INF, INF)
-                rows(f"{h} friction cone", k, 0 if self.contact(k, h) is not None else -INF, INF)
-                rows(f"{h} patch moment", k, 0 if self.contact(k, h) is not None else -INF, INF)
+                rows(f"{h} friction cone", k, 0 if ch is not None else -INF, INF)
+                rows(f"{h} patch moment", k, 0 if ch is not None else -INF, INF)
             for oid, j in self.midx.items():
                 mode = self.obj_mode(k, oid)
                 if last:

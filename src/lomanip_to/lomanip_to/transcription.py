@@ -370,7 +370,7 @@ class Window:
             # by the carry, while the box barely moved; no executed grasp held through it
             # (docs/to.md, session 22). Rows: the sine-vector, in the surface's frame, of the hand's
             # rotation there from knot a to b, times {h}_grip_axes (the axes it may not turn about:
-            # all three on a face; on a bar it may roll about the bar, see discretize._hand_params)
+            # all three on a face; on a bar it may roll about the bar, see grip_axes)
             Rsel_b = sel[0] * ca.SX.eye(3)
             for j in range(M):
                 Rsel_b = Rsel_b + sel[j + 1] * objs_b[j][2]
