@@ -28,6 +28,7 @@ _OPTION_FIELDS = {"use_keyframe_base_cost": bool, "use_keyframe_foot_cost": bool
                   "max_iterations": int, "output_rate": float, "time_limit": float, "inertial_torque_groups": list,
                   "single_support_com_lateral": float, "waist_yaw_range": float,
                   "interval_momentum_tolerance": float, "upper_body_acceleration_limit": float,
+                  "upper_body_speed_limit": float,
                   "carried_object_clearance": float, "dt_lift": float,
                   "solver_options": dict, "weights": dict}
 

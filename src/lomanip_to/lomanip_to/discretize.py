@@ -621,6 +621,8 @@ class ProblemData:
                     xl[6 + j] = max(xl[6 + j], opt.min_knee_bend)
             setb("x", k, xl, xu)
             vmax = np.concatenate([np.full(6, 4.0), m.vel_max])
+            if opt.upper_body_speed_limit > 0:  # waist and arms (xd[18:35]), as the acceleration rows
+                vmax[18:35] = np.minimum(vmax[18:35], opt.upper_body_speed_limit)
             setb("xd", k, -vmax, vmax)
             setb("comd", k, -3, 3)
             setb("kk", k, -2, 2)

@@ -322,6 +322,12 @@ class Options:
     #: accelerations up to 200 rad/s^2 between knots (the pushes that execute: under 20); such a
     #: plan holds its dynamics at the knots only (docs/to.md, session 19)
     upper_body_acceleration_limit: float = 0.0
+    #: rad/s: bound on the waist and arm joint speeds at every knot (0 = off; the model's own limit
+    #: always applies: 20 rad/s, as the model file gives none). Why: with the hands held on the box (the grip rows) S1's plans
+    #: still turned a shoulder at up to 15 rad/s in the lift, and under physics the arms could not
+    #: follow at their torque limits; the pushes that execute stay under 2 rad/s (docs/to.md,
+    #: session 23)
+    upper_body_speed_limit: float = 0.0
     #: m: while an object is carried, the TO's collision rows keep it this far from every body sphere
     #: but the hands and forearms (0 = off: only the shins' and feet's 3 cm). Why: the TO checks
     #: collisions at its knots; S1's plans held the box against the torso, head and upper arms at
@@ -461,6 +467,7 @@ def validate_problem(prob: Problem, model=None) -> None:
         raise ProblemError(INVALID_REQUEST, f"options.inertial_torque_groups: unknown group(s) {', '.join(map(repr, bad))} "
                                             f"(known: {', '.join(TORQUE_GROUPS)})", "options")
     for name, hi, rule in (("interval_momentum_tolerance", np.inf, ">= 0"), ("upper_body_acceleration_limit", np.inf, ">= 0"),
+                           ("upper_body_speed_limit", np.inf, ">= 0"),
                            ("carried_object_clearance", 0.2, "in [0, 0.2] m"), ("dt_lift", 1.0, "in [0, 1] s")):
         val = getattr(prob.options, name)
         if not (np.isfinite(val) and 0 <= val <= hi):
