@@ -322,11 +322,11 @@ class Options:
     #: accelerations up to 200 rad/s^2 between knots (the pushes that execute: under 20); such a
     #: plan holds its dynamics at the knots only (docs/to.md, session 19)
     upper_body_acceleration_limit: float = 0.0
-    #: rad/s: bound on the waist and arm joint speeds at every knot (0 = off; the model's own limit
-    #: always applies: 20 rad/s, as the model file gives none). Why: with the hands held on the box (the grip rows) S1's plans
-    #: still turned a shoulder at up to 15 rad/s in the lift, and under physics the arms could not
-    #: follow at their torque limits; the pushes that execute stay under 2 rad/s (docs/to.md,
-    #: session 23)
+    #: rad/s: bound on the waist and arm joint speeds at every knot (0 = off; the TO's bound of
+    #: 20 rad/s on every joint always applies, as the model file gives none). Why: with the hands
+    #: held on the box (the grip rows) S1's plans still turned a shoulder at up to 15 rad/s in the
+    #: lift; the pushes that execute stay under 2 rad/s. On S1 it did not yet give a plan that
+    #: executes (docs/to.md, session 23)
     upper_body_speed_limit: float = 0.0
     #: m: while an object is carried, the TO's collision rows keep it this far from every body sphere
     #: but the hands and forearms (0 = off: only the shins' and feet's 3 cm). Why: the TO checks
