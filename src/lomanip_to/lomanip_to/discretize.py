@@ -15,7 +15,7 @@ import numpy as np
 from .model import FEET, HANDS, LIMBS, SOLE_CENTER, SOLE_FORCE_POINTS, G1Model, rot_to_rpy, rpy_to_rot
 from .problem import FLOOR, STANCE, WALKING, Problem, SceneObject
 from .route import footprint_of, point_along, shortest_route, smoothstep, walking_heading
-from .transcription import G, Structure, Window, grip_axes
+from .transcription import UPPER_BODY_XD, G, Structure, Window, grip_axes
 
 INF = np.inf
 #: clearance (m) of the foot and shin spheres from objects in the hard collision rows.  Why: the
@@ -621,8 +621,8 @@ class ProblemData:
                     xl[6 + j] = max(xl[6 + j], opt.min_knee_bend)
             setb("x", k, xl, xu)
             vmax = np.concatenate([np.full(6, 4.0), m.vel_max])
-            if opt.upper_body_speed_limit > 0:  # waist and arms (xd[18:35]), as the acceleration rows
-                vmax[18:35] = np.minimum(vmax[18:35], opt.upper_body_speed_limit)
+            if opt.upper_body_speed_limit > 0:
+                vmax[UPPER_BODY_XD] = np.minimum(vmax[UPPER_BODY_XD], opt.upper_body_speed_limit)
             setb("xd", k, -vmax, vmax)
             setb("comd", k, -3, 3)
             setb("kk", k, -2, 2)

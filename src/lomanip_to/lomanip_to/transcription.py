@@ -64,6 +64,10 @@ ROLLING_DISSIPATION_SCALE = 100.0
 #: a hand contact whose normal (object frame) is this close to a face axis sits on a flat face
 FLAT_FACE_COS = 0.99
 
+#: the waist and arm joints' entries of xd (base 0:6, legs 6:18): the upper-body speed bounds and
+#: acceleration rows act on these, the legs stay free for stepping
+UPPER_BODY_XD = slice(18, 35)
+
 
 def grip_axes(n_local) -> np.ndarray:
     """3 x 3 projector onto the rotations a hand's grip holds on a surface of normal ``n_local``
@@ -290,7 +294,7 @@ class Window:
             add("angular momentum across the interval", h_ab[3:6] / mass - wb["kk"])
         if st.upper_body_acceleration:
             # base rotation rates, waist and arm joints (Options.upper_body_acceleration_limit)
-            add("upper-body acceleration", ca.vertcat(wb["xd"][3:6] - wa["xd"][3:6], wb["xd"][18:35] - wa["xd"][18:35]))
+            add("upper-body acceleration", ca.vertcat(wb["xd"][3:6] - wa["xd"][3:6], wb["xd"][UPPER_BODY_XD] - wa["xd"][UPPER_BODY_XD]))
         # ---- centroidal consistency (knot rows)
         add("CoM consistency", wa["com"] - com_x)
         add("centroidal momentum consistency (CMM)",
