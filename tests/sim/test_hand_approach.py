@@ -1,4 +1,5 @@
-"""hand_approach: a hand rising through the bar it is about to grasp is lifted out of it, smoothly.
+"""hand_approach: a hand rising through the bar it is about to grasp is lifted out of it, smoothly;
+one lowered through the bar it has let go of is lifted out the same way.
 
 A small MuJoCo model (a free "trolley" with a handle bar, a mocap "hand" with a 13 x 7 x 11 cm box
 geom and a site) stands in for the G1 and the push of make demo: the planned hand rises right
@@ -8,7 +9,7 @@ through the bar and grasps it from behind and above (normal (-0.8, 0, 0.6)).
 import mujoco
 import numpy as np
 
-from lomanip_sim.hand_approach import approach_lift
+from lomanip_sim.hand_approach import approach_lift, retreat_lift
 from lomanip_sim.hand_detour import HandBoxProbe, movable_bodies, static_obstacle_geoms
 from mocap_hand import hand_ids, scene
 
@@ -19,12 +20,14 @@ _OBJECTS = """
 """
 
 
-def _setup():
+def _setup(trolley_x=None):
+    """(grid, probe); the trolley at x = 0.85 m or along ``trolley_x(t)``."""
     m = mujoco.MjModel.from_xml_string(scene(_OBJECTS, site_offset=0.0, box_offset=0.06))
     hand, site, hg = hand_ids(m)
     t = np.round(np.arange(0.0, 3.001, 0.01), 6)
     (b,) = movable_bodies(m, hand)
-    pose = (np.repeat(np.array([[0.85, 0.0, 0.0]]), len(t), 0), np.repeat(np.array([[1.0, 0, 0, 0]]), len(t), 0))
+    x = np.full_like(t, 0.85) if trolley_x is None else trolley_x(t)
+    pose = (np.stack([x, np.zeros_like(t), np.zeros_like(t)], axis=1), np.repeat(np.array([[1.0, 0, 0, 0]]), len(t), 0))
     probe = HandBoxProbe(m, hg, site, static_obstacle_geoms(m, hand), {b: pose})
     return t, probe
 
@@ -45,4 +48,26 @@ def test_rise_through_the_bar_is_lifted_out_and_lands_along_the_normal():
     sel = (t >= start - 0.8) & (t < start - 0.1)
     assert after[sel].min() >= 0.01 - 1e-6  # kept out of the bar before the final approach
     assert np.all(lift[t >= start + 0.4] == 0.0) and np.all(lift[t < start - 0.8 - 0.4] == 0.0)  # last lift + taper
+    assert np.abs(np.diff(lift)).max() < 0.01  # smooth: under 1 m/s on the 10 ms grid
+
+
+def test_lowering_through_the_bar_after_the_release_is_lifted_out_from_the_release_on():
+    # the trolley rolls 0.85 -> 1.10 m over 0.5-2.0 s (the probe must place it at each sample's own
+    # time), the contact ends at 2.0 s, then the plan lowers the hand 25 cm through the bar
+    t, probe = _setup(lambda t: 0.85 + 0.25 * np.clip((t - 0.5) / 1.5, 0.0, 1.0))
+    end = 2.0
+    u = np.clip((t - end) / 0.5, 0.0, 1.0)
+    pos = np.stack([np.full_like(t, 0.655), np.zeros_like(t), 0.95 - 0.25 * u], axis=1)  # box over the bar at 0.715 m
+    rot = np.repeat(np.eye(3)[None], len(t), 0)
+    normals = np.repeat(np.array([[-0.8, 0.0, 0.6]]), len(t), 0)
+    before = np.array([probe.clearance(p, R, i)[1] for i, (p, R) in enumerate(zip(pos, rot))])
+    assert before[(t > end + 0.1) & (t < end + 0.5)].min() < -0.01  # the plan goes through the bar
+    lift = retreat_lift(t, pos, rot, normals, end, probe, window=0.8, margin=0.01, spread=0.4, last=0.3, taper=0.3)
+    moved = pos + lift[:, None] * normals
+    after = np.array([probe.clearance(p, R, i)[1] for i, (p, R) in enumerate(zip(moved, rot))])
+    sel = (t > end + 0.3) & (t <= end + 0.8)
+    assert after[sel].min() >= 0.01 - 1e-6  # kept out of the bar once it has left
+    assert after[(t > end) & (t <= end + 0.8)].min() > -0.02  # and nearly so while it rises (the plan drops 5 cm in 0.1 s)
+    assert np.all(lift[t <= end] == 0.0)  # nothing while the contact lasts: the hand leaves along the normal
+    assert np.all(lift[t > end + 0.8 + 0.4] == 0.0)  # last checked sample + the kernel's half-width
     assert np.abs(np.diff(lift)).max() < 0.01  # smooth: under 1 m/s on the 10 ms grid

@@ -484,3 +484,41 @@ def test_hand_contact_moment_stays_inside_its_patch():
     sim.set_controller(point)
     sim.step(20)
     assert point.last_hand_moments == {}
+
+
+def test_hand_retreat_lifts_released_hands_clear_of_their_object():
+    """``hand_retreat``: after the plan lets go, the hand references leave the object along the
+    (up-tilted) contact normal until the hand boxes keep ``hand_retreat_margin`` from it, and the
+    references before the release are untouched. case_lift_box with its grasp cut at 2.0 s: the
+    plan's hands stay on the box's faces, inside the margin."""
+    import dataclasses
+
+    from lomanip_sim.hand_detour import HandBoxProbe, movable_bodies
+
+    sim, tr = simulation("case_lift_box")
+    let_go = 2.0
+    phases = []
+    for ph in tr.phases:
+        if ph.start < let_go < ph.end and "left_hand" in ph.contacts:
+            feet = {l: c for l, c in ph.contacts.items() if "hand" not in l}
+            phases += [dataclasses.replace(ph, end=let_go), dataclasses.replace(ph, start=let_go, contacts=feet)]
+        else:
+            phases.append(ph)
+    tr = dataclasses.replace(tr, phases=phases)
+    on = WholeBodyController(sim.world, tr)
+    off = WholeBodyController(sim.world, tr, dataclasses.replace(WbcGains(), hand_retreat=False))
+    g = on.g
+    assert sorted(l for l, _, _ in on.retreat_lifts) == ["left_hand", "right_hand"] and not off.retreat_lifts
+    m = sim.model
+    root = int(m.body_rootid[on.pelvis])
+    movable = on._movable_poses(movable_bodies(m, root))
+    for limb, release, lift in on.retreat_lifts:
+        assert release <= let_go + 1e-9 and lift > 0.0
+        p_on, p_off = on.refs.site_p[limb], off.refs.site_p[limb]
+        assert np.allclose(p_on[tr.t <= release], p_off[tr.t <= release])  # nothing before the release
+        probe = HandBoxProbe(m, on.hand_geom[limb], on.site_id[limb], [], movable)
+        checked = np.flatnonzero((tr.t > release + g.hand_retreat_rise) & (tr.t <= let_go + g.hand_retreat_window))
+        before = min(probe.clearance(p_off[i], on.refs.site_R[limb][i], i)[1] for i in checked)
+        after = min(probe.clearance(p_on[i], on.refs.site_R[limb][i], i)[1] for i in checked)
+        assert before < g.hand_retreat_margin <= after + 1e-6, (limb, before, after)
+        assert np.abs(np.diff(p_on - p_off, axis=0)).max() < 0.01 * (tr.t[1] - tr.t[0]) / 0.01 + 1e-9  # <= 1 m/s

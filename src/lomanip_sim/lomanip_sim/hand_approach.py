@@ -71,3 +71,30 @@ def approach_lift(t: np.ndarray, pos: np.ndarray, rot: np.ndarray, normals: np.n
             need[i] = next((e for e in np.arange(lift[i] + step, max_lift + 1e-9, step) if ok(i, e)), max_lift)
         lift = _envelope(t, need, spread, start, post, taper)
     return lift
+
+
+class _ReversedProbe:
+    """A probe whose grid index runs backwards (for a time-reversed grid)."""
+
+    def __init__(self, probe: HandBoxProbe, n: int):
+        self.probe, self.n = probe, n
+
+    def clearance(self, p_site: np.ndarray, R_site: np.ndarray, i: int | None = None) -> tuple[float, float]:
+        return self.probe.clearance(p_site, R_site, None if i is None else self.n - 1 - i)
+
+
+def retreat_lift(t: np.ndarray, pos: np.ndarray, rot: np.ndarray, normals: np.ndarray, end: float,
+                 probe: HandBoxProbe, **kwargs) -> np.ndarray:  # fmt: skip
+    """(N,) lift (m) along ``normals`` for the hand's leave from a contact ending at ``end``.
+
+    The approach in reverse time: samples in (end + last, end + window] get the least lift that
+    keeps the hand box ``margin`` from the scene, spread smoothly; with ``taper`` <= ``last`` and
+    ``post`` 0 it rises from 0 at ``end`` (nothing while the contact lasts), so the hand leaves along
+    the normal. Why: the TO's hand is a point, free to sweep through the
+    object once the contact ends; in the push of ``make demo`` the plan lowers both hands 20 cm
+    straight through the trolley's handle bar after letting go, the hand boxes stayed on the bar
+    pressing 20-35 N on it for 1.8 s and the robot fell backwards when they slipped off.
+    """
+    n = len(t)
+    lift = approach_lift(-t[::-1], pos[::-1], rot[::-1], normals[::-1], -end, _ReversedProbe(probe, n), **kwargs)
+    return lift[::-1].copy()

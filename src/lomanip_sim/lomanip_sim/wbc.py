@@ -42,7 +42,7 @@ from . import frames
 from .robot_model import (FOOT_BODIES, FOOT_CONTACT_POINTS, FOOT_SITES, FOOT_SOLE_OFFSET, G1_JOINT_NAMES,
                           HAND_COLLISION_HALF_SIZE, HAND_SITES, PELVIS_BODY, TORSO_BODY)
 from .contact_forces import LimbForceMeter
-from .hand_approach import approach_lift, smoothstep
+from .hand_approach import approach_lift, retreat_lift, smoothstep
 from .hand_detour import Detour, HandBoxProbe, detour, movable_bodies, static_obstacle_geoms
 from .trajectory import FEET, HANDS, Trajectory
 from .world import World
@@ -202,6 +202,20 @@ class WbcGains:
     hand_approach_spread: float = 0.4  # s, half-width of the smooth kernel that spreads each sample's lift
     hand_approach_taper: float = 0.4  # s over which the lift goes to zero (0.1 s: 230 N landing on the bar)
     hand_approach_post: float = 0.2  # s after the contact start at which the lift is gone (force still ~0)
+    # after a hand contact ends the reference is lifted the same way, in reverse (hand_approach.retreat_lift):
+    # the push's plan lowers both hands 20 cm through the trolley's handle bar once it lets go; the
+    # hand boxes stayed on the bar with 20-35 N for 1.8 s and the robot fell backwards (make demo)
+    hand_retreat: bool = True
+    hand_retreat_window: float = 0.8  # s after the contact's end up to which the hand box is checked
+    hand_retreat_rise: float = 0.3  # s from the release over which the lift rises (from 0: none before it)
+    # N: the release is the contact's end or, earlier, the last time the plan's hand force is above
+    # this (the demo push's plan stops pushing at 4.2 s, 0.6 s before its contact ends, and lowers
+    # the hands through the bar from 4.6 s: lifted from the contact's end it still fell, at 6.76 s)
+    hand_retreat_force: float = 1.0
+    # m, kept from the scene at its planned pose: a pushed object lags its plan by 1-3 cm, and with
+    # 0.03 the demo push's hands still caught the bar (2 of 4 pushes that fell with the bar under the
+    # hands no longer fall at 0.05: docs/execution.md, session 24)
+    hand_retreat_margin: float = 0.05
     # while a hand's grasp offset is active (approach ramp, contact, release) its position task acts
     # on its own arm only and the torso tracks the plan's (as in a detour): with the full Jacobian
     # the offsets (6-7 cm back and up, off the planned posture) pulled the whole body back; the push
@@ -346,6 +360,7 @@ class WholeBodyController:
         self._detoured = {l: np.zeros(traj.n, bool) for l in HANDS}
         self._arm_only = {l: np.zeros(traj.n, bool) for l in HANDS}  # hand position task on its own arm only
         self.approach_lifts: list[tuple[str, float, float]] = []  # (hand, contact start, largest lift in m)
+        self.retreat_lifts: list[tuple[str, float, float]] = []  # (hand, contact end, largest lift in m)
         # columns of a hand's own arm (shoulder to wrist) in the QP's qdd (6 base dofs first)
         self._arm_cols = {l: np.array([6 + j for j, nm in enumerate(G1_JOINT_NAMES) if nm.startswith(l.split("_")[0])
                                        and any(k in nm for k in ("shoulder", "elbow", "wrist"))])
@@ -420,15 +435,21 @@ class WholeBodyController:
             if self.g.hand_approach and movable and self.hand_geom[limb] >= 0:
                 probe = HandBoxProbe(m, self.hand_geom[limb], self.site_id[limb], static_geoms, movable)
                 for start, c in self._contact_starts(limb):
-                    normals = self._contact_normals(c)
-                    if self.g.hand_approach_up > 0:  # tilt the lift towards up (less arm mass moved back), faces that look up
-                        up = np.where(normals[:, 2:3] > 0.3, self.g.hand_approach_up * np.array([0.0, 0.0, 1.0]), 0.0)
-                        normals = (normals + up) / np.linalg.norm(normals + up, axis=1, keepdims=True)
+                    normals = self._lift_normals(self._contact_normals(c))
                     lift = approach_lift(t, sp[limb], sR[limb], normals, start, probe, window=self.g.hand_offset_ramp,
                                          margin=self.g.hand_approach_margin, spread=self.g.hand_approach_spread,
                                          taper=self.g.hand_approach_taper, post=self.g.hand_approach_post)  # fmt: skip
                     sp[limb] = sp[limb] + lift[:, None] * normals
                     self.approach_lifts.append((limb, start, float(lift.max())))
+                if self.g.hand_retreat:
+                    for end, c_end, c in self._contact_ends(limb):
+                        normals = self._lift_normals(self._contact_normals(c))
+                        lift = retreat_lift(t, sp[limb], sR[limb], normals, end, probe, window=c_end - end + self.g.hand_retreat_window,
+                                            margin=self.g.hand_retreat_margin, spread=self.g.hand_approach_spread,
+                                            last=self.g.hand_retreat_rise, taper=self.g.hand_retreat_rise)  # fmt: skip
+                        sp[limb] = sp[limb] + lift[:, None] * normals
+                        self._arm_only[limb] |= lift > 1e-9  # as under the grasp offsets: the arm moves the hand
+                        self.retreat_lifts.append((limb, end, float(lift.max())))
             if self.g.hand_arm_only_near_contact:
                 self._arm_only[limb] |= np.linalg.norm(off, axis=1) > 1e-9
             if obstacles and self.hand_geom[limb] >= 0:
@@ -612,6 +633,34 @@ class WholeBodyController:
                 out.append((ph.start, c))
             prev = c
         return out
+
+    def _contact_ends(self, limb: str) -> list:
+        """(release time, end time, contact) of each contact of ``limb`` that a phase without it follows. The
+        release is the contact's end, or earlier the last grid time in the contact where the plan's
+        force on the hand exceeds ``hand_retreat_force`` (the plan no longer uses the hand after it)."""
+        tr, out, prev, start = self.traj, [], None, 0.0
+        f = tr.forces.get(limb)
+        for ph in tr.phases:
+            c = ph.contacts.get(limb)
+            if c is not None and prev is None:
+                start = ph.start
+            if c is None and prev is not None:
+                end = ph.start
+                if f is not None:
+                    sel = (tr.t >= start) & (tr.t <= ph.start) & (np.linalg.norm(f, axis=1) > self.g.hand_retreat_force)
+                    if np.any(sel):
+                        end = float(tr.t[np.flatnonzero(sel)[-1]])
+                out.append((end, ph.start, prev))
+            prev = c
+        return out
+
+    def _lift_normals(self, normals: np.ndarray) -> np.ndarray:
+        """(N,3) directions of the approach and retreat lifts: the contact normals, tilted towards up
+        on faces that look up (``hand_approach_up``: less arm mass moved back)."""
+        if self.g.hand_approach_up <= 0:
+            return normals
+        up = np.where(normals[:, 2:3] > 0.3, self.g.hand_approach_up * np.array([0.0, 0.0, 1.0]), 0.0)
+        return (normals + up) / np.linalg.norm(normals + up, axis=1, keepdims=True)
 
     def _hand_offsets(self, limb: str, R_hand: np.ndarray) -> np.ndarray:
         """(N,3) shift of the hand target along the contact normal by the hand box's support distance.
