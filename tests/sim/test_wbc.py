@@ -522,3 +522,12 @@ def test_hand_retreat_lifts_released_hands_clear_of_their_object():
         after = min(probe.clearance(p_on[i], on.refs.site_R[limb][i], i)[1] for i in checked)
         assert before < g.hand_retreat_margin <= after + 1e-6, (limb, before, after)
         assert np.abs(np.diff(p_on - p_off, axis=0)).max() < 0.01 * (tr.t[1] - tr.t[0]) / 0.01 + 1e-9  # <= 1 m/s
+
+
+def test_reference_corrections_are_summarised_for_the_logs():
+    sim, tr = simulation("case_stand")
+    wbc = WholeBodyController(sim.world, tr)
+    line = wbc.reference_corrections()
+    assert line.startswith("hand references: 0 detours") and "approach lifts 0 of 0" in line and "retreat lifts 0 of 0" in line
+    wbc.retreat_lifts += [("left_hand", 2.0, 0.12), ("right_hand", 2.0, 0.0)]
+    assert "retreat lifts 1 of 2 (up to 12.0 cm)" in wbc.reference_corrections()

@@ -349,6 +349,7 @@ class SimNode(Node):
             goal_handle.abort()
             return result
         log.info(f"executing {traj.scenario or 'a'} trajectory: {traj.n} points, {traj.duration:.2f} s")
+        log.info(ex.wbc.reference_corrections())
         feedback = Execute.Feedback()
         try:
             while True:

@@ -634,6 +634,16 @@ class WholeBodyController:
             prev = c
         return out
 
+    def reference_corrections(self) -> str:
+        """One line on the geometric corrections of the hand references (for the logs): detours
+        round static geoms, lifts before contacts and after releases."""
+        def lifts(items):
+            moved = [x for x in items if x[2] > 0.0]
+            return f"{len(moved)} of {len(items)}" + (f" (up to {100 * max(x[2] for x in moved):.1f} cm)" if moved else "")
+        shifted = [d for d in self.detours if d.direction is not None]
+        return (f"hand references: {len(shifted)} detours round static geoms, approach lifts {lifts(self.approach_lifts)}, "
+                f"retreat lifts {lifts(self.retreat_lifts)}")
+
     def _contact_ends(self, limb: str) -> list:
         """(release time, end time, contact) of each contact of ``limb`` that a phase without it follows. The
         release is the contact's end, or earlier the last grid time in the contact where the plan's
