@@ -34,6 +34,22 @@ def _track(sim, tr, seconds, every=10):
     return wbc, eb, ej, ejr, {k: np.array(v) for k, v in sites.items()}
 
 
+def _lift_box_let_go(let_go: float):
+    """case_lift_box's simulation and plan with the hands' contacts cut at ``let_go`` (s): the plan
+    lets go of the box there, its motion unchanged."""
+    import dataclasses
+
+    sim, tr = simulation("case_lift_box")
+    phases = []
+    for ph in tr.phases:
+        if ph.start < let_go < ph.end and "left_hand" in ph.contacts:
+            feet = {l: c for l, c in ph.contacts.items() if "hand" not in l}
+            phases += [dataclasses.replace(ph, end=let_go), dataclasses.replace(ph, start=let_go, contacts=feet)]
+        else:
+            phases.append(ph)
+    return sim, dataclasses.replace(tr, phases=phases)
+
+
 def test_stand_plan_tracked_tightly():
     sim, tr = simulation("case_stand")
     wbc, eb, ej, _ejr, _ = _track(sim, tr, tr.duration + 0.5)
@@ -255,18 +271,8 @@ def test_hand_contact_released_when_its_object_has_left_the_hand():
     make demo: the trolley coasted out of the hands at ~3.6 s, the plan kept them on it to 4.8 s and
     the hands reached after it. Only touch lost is not enough: the grasp point must also be out of
     the arm's planned reach."""
-    import dataclasses
-
-    sim, tr = simulation("case_lift_box")
     let_go = 2.0  # the plan's own release: the hands leave the box at 2.0 s instead of holding it to the end
-    phases = []
-    for ph in tr.phases:
-        if ph.start < let_go < ph.end and "left_hand" in ph.contacts:
-            feet = {l: c for l, c in ph.contacts.items() if "hand" not in l}
-            phases += [dataclasses.replace(ph, end=let_go), dataclasses.replace(ph, start=let_go, contacts=feet)]
-        else:
-            phases.append(ph)
-    tr = dataclasses.replace(tr, phases=phases)
+    sim, tr = _lift_box_let_go(let_go)
     wbc = WholeBodyController(sim.world, tr)
     g = wbc.g
     sim.set_controller(wbc)
@@ -495,16 +501,8 @@ def test_hand_retreat_lifts_released_hands_clear_of_their_object():
 
     from lomanip_sim.hand_detour import HandBoxProbe, movable_bodies
 
-    sim, tr = simulation("case_lift_box")
     let_go = 2.0
-    phases = []
-    for ph in tr.phases:
-        if ph.start < let_go < ph.end and "left_hand" in ph.contacts:
-            feet = {l: c for l, c in ph.contacts.items() if "hand" not in l}
-            phases += [dataclasses.replace(ph, end=let_go), dataclasses.replace(ph, start=let_go, contacts=feet)]
-        else:
-            phases.append(ph)
-    tr = dataclasses.replace(tr, phases=phases)
+    sim, tr = _lift_box_let_go(let_go)
     on = WholeBodyController(sim.world, tr)
     off = WholeBodyController(sim.world, tr, dataclasses.replace(WbcGains(), hand_retreat=False))
     g = on.g
