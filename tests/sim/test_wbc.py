@@ -529,3 +529,32 @@ def test_reference_corrections_are_summarised_for_the_logs():
     assert line.startswith("hand references: 0 detours") and "approach lifts 0 of 0" in line and "retreat lifts 0 of 0" in line
     wbc.retreat_lifts += [("left_hand", 2.0, 0.12), ("right_hand", 2.0, 0.0)]
     assert "retreat lifts 1 of 2 (up to 12.0 cm)" in wbc.reference_corrections()
+
+
+@pytest.mark.parametrize("measured", [True, False])
+def test_a_touching_hand_on_a_pushed_object_feeds_forward_its_measured_force(measured):
+    """``push_feedforward_measured``: on an object the plan keeps at one height, a hand that touches
+    it enters the QP with the force measured at the step before (what the contact gives), not with
+    the plan's, whose direction the actual contact may not be able to give."""
+    import dataclasses
+
+    sim, tr = simulation("case_lift_box")
+    P, Q = tr.objects["box"]  # the box held where it stands: an object kept at one height
+    tr = dataclasses.replace(tr, objects={**tr.objects, "box": (np.repeat(P[:1], len(P), 0), np.repeat(Q[:1], len(Q), 0))})
+    wbc = WholeBodyController(sim.world, tr, dataclasses.replace(WbcGains(), push_feedforward_measured=measured))
+    sim.set_controller(wbc)
+    start = next(ph.start for ph in tr.phases if "left_hand" in ph.contacts)
+    checked, differ = 0, 0
+    while wbc.status.t_ref < start + 0.4:
+        before = {l: np.array(wbc.measured_forces.get(l, np.zeros(3))) for l in ("left_hand", "right_hand")}
+        sim.step()
+        for limb in ("left_hand", "right_hand"):
+            if wbc.status.t_ref > start + 0.1 and limb in wbc._push_force and wbc._touching(sim.data, limb, "box"):
+                f_qp = wbc.last_forces[limb]
+                if measured:
+                    assert np.allclose(f_qp, before[limb], atol=1e-6), (f_qp, before[limb])
+                differ += not np.allclose(f_qp, before[limb], atol=1e-3)
+                checked += 1
+    assert checked > 50  # the hands touched the box over most of the window
+    assert (differ == 0) if measured else (differ > checked // 2)
+    assert not sim.has_fallen()

@@ -274,6 +274,14 @@ class WbcGains:
     push_object_gain: float = 200.0  # N/m
     push_min_force: float = 2.0  # N: a hand keeps touching an object that runs ahead
     push_max_extra: float = 40.0  # N over the plan's normal force
+    # on a pushed object, a touching hand's force is fed forward as measured (the step before), not as
+    # the plan's: the QP took the planned force along the plan's normal (-0.8, 0, 0.6) as given, but
+    # the left hand box met the demo's handle bar from behind and below (contact normal (-0.97, 0,
+    # -0.25)), the upward part the QP counted on was not there and the hand sagged 5 cm below its
+    # reference, pushing the trolley 7 cm too far; measured, the hand stays within 1-2 cm and meets
+    # the bar along (-0.71, 0, 0.70). 9 of 12 saved push plans executed to success against 8, two
+    # falls either way (docs/execution.md, session 24)
+    push_feedforward_measured: bool = True
 
 
 @dataclass
@@ -1138,6 +1146,8 @@ class WholeBodyController:
             lost = g.hand_lost_time > 0 and t - self._last_touch.get(limb, -np.inf) > g.hand_lost_time
             if self._engaged.get(limb) is phase and limb in tr.forces and not lost:
                 bhand[3 * k : 3 * k + 3] = self.hand_feedforward(limb, contacts, i, s)
+                if g.push_feedforward_measured and touching and limb in self._push_force:
+                    bhand[3 * k : 3 * k + 3] = self.measured_forces.get(limb, bhand[3 * k : 3 * k + 3])
         # friction pyramids: 4 tangent rows + normal bounds per point
         Ain = np.zeros((5 * len(points), nx))
         bu = np.zeros(5 * len(points))
