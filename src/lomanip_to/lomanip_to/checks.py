@@ -318,8 +318,8 @@ def torque_ratio_between_knots(model: G1Model, res, rate: float = 100.0):
 
     Why: ``torque_ratio`` sees the knots and the TO's forward-difference acceleration only.
     Between knots the tracked motion may ask for far more: a converged S1 prefix (session 23's RP)
-    passes the knot check at 0.95 of the limits, and its dense plan needs 2.5 times the right wrist
-    yaw's limit at 3.99 s (the demo push: 0.72 at the knots and between them).
+    passes the knot check at 0.82 of the limits, and its dense plan needs 2.5 times the waist
+    pitch's limit at 4.69 s (the demo push: 0.72 at the knots and between them).
     """
     import pinocchio as pin
 
