@@ -93,7 +93,7 @@ def retreat_lift(t: np.ndarray, pos: np.ndarray, rot: np.ndarray, normals: np.nd
     the normal. Why: the TO's hand is a point, free to sweep through the
     object once the contact ends; in the push of ``make demo`` the plan lowers both hands 20 cm
     straight through the trolley's handle bar after letting go, the hand boxes stayed on the bar
-    pressing 20-35 N on it for 1.8 s and the robot fell backwards when they slipped off.
+    pressing 10-35 N on it for 1.8 s and the robot fell backwards when they slipped off.
     """
     n = len(t)
     lift = approach_lift(-t[::-1], pos[::-1], rot[::-1], normals[::-1], -end, _ReversedProbe(probe, n), **kwargs)

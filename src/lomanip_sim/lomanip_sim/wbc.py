@@ -204,7 +204,7 @@ class WbcGains:
     hand_approach_post: float = 0.2  # s after the contact start at which the lift is gone (force still ~0)
     # after a hand contact ends the reference is lifted the same way, in reverse (hand_approach.retreat_lift):
     # the push's plan lowers both hands 20 cm through the trolley's handle bar once it lets go; the
-    # hand boxes stayed on the bar with 20-35 N for 1.8 s and the robot fell backwards (make demo)
+    # hand boxes stayed on the bar with 10-35 N for 1.8 s and the robot fell backwards (make demo)
     hand_retreat: bool = True
     hand_retreat_window: float = 0.8  # s after the contact's end up to which the hand box is checked
     hand_retreat_rise: float = 0.3  # s from the release over which the lift rises (from 0: none before it)
