@@ -321,6 +321,8 @@ def torque_ratio_between_knots(model: G1Model, res, rate: float = 100.0):
     passes the knot check at 0.82 of the limits, and its dense plan needs 2.5 times the waist
     pitch's limit at 4.69 s (the demo push: 0.72 at the knots and between them).
     """
+    import types
+
     import pinocchio as pin
 
     from .result import _contact_sides, _hermite
@@ -334,28 +336,25 @@ def torque_ratio_between_knots(model: G1Model, res, rate: float = 100.0):
     Xdd = np.gradient(Xd, t, axis=0)
     idx = np.clip(np.searchsorted(tk, t, side="right") - 1, 0, K - 1)
     m, d = model.pin_model, model.pin_data
-    local = {}  # limb -> (K,3) contact point in the limb's joint frame at its knot
+
+    def limb_frames(x):
+        pin.forwardKinematics(m, d, model.x_to_q(x))
+        return {limb: d.oMi[model.limb_joint[limb]] for limb in res.limbs}
+
+    local = {limb: np.zeros((K, 3)) for limb in res.limbs}  # contact point in the limb's joint frame
     for k in range(K):
-        pin.forwardKinematics(m, d, model.x_to_q(res.x_knots[k]))
-        for limb in res.limbs:
-            oMi = d.oMi[model.limb_joint[limb]]
-            local.setdefault(limb, np.zeros((K, 3)))[k] = oMi.rotation.T @ (res.points_knots[limb][k] - oMi.translation)
+        for limb, oMi in limb_frames(res.x_knots[k]).items():
+            local[limb][k] = oMi.rotation.T @ (res.points_knots[limb][k] - oMi.translation)
+    points = {limb: np.zeros((len(t), 3)) for limb in res.limbs}  # carried with the limb
+    for i in range(len(t)):
+        for limb, oMi in limb_frames(X[i]).items():
+            points[limb][i] = oMi.translation + oMi.rotation @ local[limb][idx[i]]
+    dense = types.SimpleNamespace(limbs=res.limbs, x_knots=X, xd_knots=Xd, points_knots=points,
+                                  forces_knots={limb: f[idx] for limb, f in res.forces_knots.items()},
+                                  torques_knots={limb: f[idx] for limb, f in res.torques_knots.items()})
     worst, where = 0.0, ("", 0.0)
     for i in range(len(t)):
-        q, v = model.x_to_q(X[i]), model.xd_to_v(X[i], Xd[i])
-        eps = 1e-6
-        a = (model.xd_to_v(X[i] + eps * Xd[i], Xd[i] + eps * Xdd[i]) - v) / eps
-        pin.forwardKinematics(m, d, q)
-        fext = [pin.Force.Zero() for _ in range(m.njoints)]
-        k = idx[i]
-        for limb in res.limbs:
-            j = model.limb_joint[limb]
-            oMi = d.oMi[j]
-            f_w = res.forces_knots[limb][k]
-            p_w = oMi.translation + oMi.rotation @ local[limb][k]
-            tau_w = res.torques_knots[limb][k] + np.cross(p_w - oMi.translation, f_w)
-            fext[j] = fext[j] + pin.Force(oMi.rotation.T @ f_w, oMi.rotation.T @ tau_w)
-        r = np.abs(np.asarray(pin.rnea(m, d, q, v, a, fext))[6:]) / model.tau_max
+        r = np.abs(_rnea_with_moments(model, dense, i, Xdd[i])[0]) / model.tau_max
         j = int(np.argmax(r))
         if r[j] > worst:
             worst, where = float(r[j]), (model.joint_names[j], float(t[i]))
