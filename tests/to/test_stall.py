@@ -71,3 +71,17 @@ def test_guide_stages_and_switched_off_never_stall():
     prob = SimpleNamespace(options=Options(stall_iterations=0))
     fn = solver._Run(prob, None, time.perf_counter()).sink("final", np.zeros(1), np.zeros(1), stall=True)
     assert _feed(fn, [(50.0, 0.0)] * 20) is None
+
+
+def test_nearly_feasible_iterates_well_below_the_best_feasible_one_keep_it_going():
+    """The demo push of session 25: after one feasible iterate (objective 884) ipopt's iterates sat at
+    violations of 1e-3 (above constr_tol) while their objective fell to 58; the stage must go on."""
+    run, fn = _sink()
+    vals = [(884.0, 1e-6)] + [(884.0 * 0.8 ** (i + 1), 2e-3) for i in range(12)]
+    assert _feed(fn, vals) is None and not run.stalled
+
+
+def test_far_infeasible_low_objectives_do_not_count_as_progress():
+    run, fn = _sink()
+    vals = [(884.0, 1e-6)] + [(10.0, 0.5)] * 12  # violation 5000 x constr_tol: not nearly feasible
+    assert _feed(fn, vals) == 5 and run.stalled

@@ -52,6 +52,11 @@ GUIDE_STAGE_TOLERANCES = {"tol": 1e-2, "acceptable_tol": 1e-1, "acceptable_const
 #: into a MUMPS factorisation that stalled for minutes; started cold from the same point the stage
 #: took 178 iterations, 48 s.
 WARM_START_MAX_VIOLATION = 1e-2
+#: the stall acceptance counts an iterate within this many times constr_tol whose objective lies
+#: well below the best feasible one as progress.  Why: a demo push stalled on its best feasible
+#: iterate (objective 884) while ipopt's iterates, at violations of 1e-3, had come down to 58 and
+#: went on falling; the plan handed back failed the momentum check between knots (session 25)
+STALL_NEAR_FEASIBLE = 100.0
 #: horizons up to this many knots are solved in one piece (segmenting only pays for long tasks)
 SEGMENT_MIN_KNOTS = 60
 
@@ -204,6 +209,7 @@ class _Run:
         opt = self.prob.options
         window = int(opt.stall_iterations) if stall else 0
         best_f: list = []  # best feasible objective after each iteration (inf before the first)
+        near_f: list = []  # objective of each iterate within STALL_NEAR_FEASIBLE x constr_tol (else inf)
         self.stalled = False
         self.best = None
 
@@ -220,8 +226,11 @@ class _Run:
                 if viol <= opt.constr_tol and (self.best is None or f < self.best[0]):
                     self.best = (float(f),) + (point() if point is not None else (None, None, None))
                 best_f.append(self.best[0] if self.best is not None else np.inf)
+                near_f.append(float(f) if viol <= STALL_NEAR_FEASIBLE * opt.constr_tol else np.inf)
                 if len(best_f) > window and np.isfinite(best_f[-window - 1]):
-                    if best_f[-window - 1] - best_f[-1] <= opt.stall_rtol * max(1.0, abs(best_f[-1])):
+                    # progress = a better feasible iterate, or a nearly feasible one well below it
+                    lowest = min(best_f[-1], min(near_f[-window:]))
+                    if best_f[-window - 1] - lowest <= opt.stall_rtol * max(1.0, abs(best_f[-1])):
                         self.stalled = True
                         return True
             if elapsed > self.prob.options.time_limit:
