@@ -30,22 +30,29 @@ class LimbForceMeter:
             for g in range(model.body_geomadr[bid], model.body_geomadr[bid] + model.body_geomnum[bid]):
                 self.geom_limb[g] = limb
         self._f6 = np.zeros(6)
+        self._is_limb = np.zeros(model.ngeom, bool)
+        self._is_limb[list(self.geom_limb)] = True
 
     def measure(self, data: mujoco.MjData) -> dict[str, np.ndarray]:
         """limb -> world force (3,) applied on the robot by its contacts (zeros when none)."""
         m = self.model
         out = {limb: np.zeros(3) for limb in LIMB_BODIES}
-        for i in range(data.ncon):
-            c = data.contact[i]
-            g1, g2 = int(c.geom[0]), int(c.geom[1])
+        n = int(data.ncon)
+        if n == 0:
+            return out
+        geoms = data.contact.geom[:n]
+        on_limb = self._is_limb[geoms]  # (n, 2): which side of each contact is a foot or hand geom
+        frames = data.contact.frame[:n]
+        for i in np.flatnonzero(on_limb[:, 0] != on_limb[:, 1]):  # the Python loop sees limb contacts only
+            g1, g2 = int(geoms[i, 0]), int(geoms[i, 1])
             l1, l2 = self.geom_limb.get(g1), self.geom_limb.get(g2)
             if (l1 is None) == (l2 is None):
                 continue  # not a limb contact, or limb-limb
             other = g2 if l1 is not None else g1
             if m.geom_bodyid[other] in self.robot_bodies:
                 continue  # self-contact
-            mujoco.mj_contactForce(m, data, i, self._f6)
-            frame = np.asarray(c.frame).reshape(3, 3)  # rows: normal (from geom[0] to geom[1]), tangents
+            mujoco.mj_contactForce(m, data, int(i), self._f6)
+            frame = frames[i].reshape(3, 3)  # rows: normal (from geom[0] to geom[1]), tangents
             f_world = frame.T @ self._f6[:3]  # force on geom[1] from geom[0]... sign fixed below
             # mj_contactForce gives the force that geom[0] exerts on geom[1] along +normal reversed:
             # the contact normal points from geom[0] to geom[1] and the normal force pushes them apart,

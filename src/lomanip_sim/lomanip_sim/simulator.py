@@ -325,25 +325,29 @@ class Simulation:
 
     def site_position(self, site_name: str) -> np.ndarray:
         """World position of a site at the current state (runs kinematics on a scratch copy)."""
-        sid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, site_name)
+        with self._lock:  # model and state of one world (a reset may rebuild both)
+            model, q = self.model, self.data.qpos.copy()
+        sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site_name)
         if sid < 0:
             raise SimulationError(f"unknown site {site_name!r}")
-        scratch = mujoco.MjData(self.model)
-        with self._lock:
-            scratch.qpos[:] = self.data.qpos
-        mujoco.mj_kinematics(self.model, scratch)
+        scratch = mujoco.MjData(model)
+        scratch.qpos[:] = q
+        mujoco.mj_kinematics(model, scratch)
         return scratch.site_xpos[sid].copy()
 
     def has_fallen(self) -> bool:
         """True when the pelvis is low (absolute or above the feet) or the pelvis/torso tilts too much."""
         c = self.fall_criteria
-        scratch = mujoco.MjData(self.model)
-        with self._lock:
-            scratch.qpos[:] = self.data.qpos
-        mujoco.mj_kinematics(self.model, scratch)
-        pz = scratch.xpos[self._pelvis][2]
-        feet_z = min(scratch.site_xpos[s][2] for s in self._foot_sites)
-        tilt = max(frames.tilt_angle(scratch.xquat[self._pelvis]), frames.tilt_angle(scratch.xquat[self._torso]))
+        with self._lock:  # model, state and body ids of one world (a reset may rebuild them; the status
+            # timer calls this during resets)
+            model, q = self.model, self.data.qpos.copy()
+            pelvis, torso, foot_sites = self._pelvis, self._torso, list(self._foot_sites)
+        scratch = mujoco.MjData(model)
+        scratch.qpos[:] = q
+        mujoco.mj_kinematics(model, scratch)
+        pz = scratch.xpos[pelvis][2]
+        feet_z = min(scratch.site_xpos[s][2] for s in foot_sites)
+        tilt = max(frames.tilt_angle(scratch.xquat[pelvis]), frames.tilt_angle(scratch.xquat[torso]))
         return bool(pz < c.min_pelvis_height or pz - feet_z < c.min_pelvis_above_feet or tilt > c.max_tilt)
 
     def pelvis_height(self) -> float:

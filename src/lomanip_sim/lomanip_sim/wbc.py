@@ -309,6 +309,35 @@ class _Refs:
     angmom_rate: np.ndarray | None = None  # (N,3)
 
 
+_EYE3 = np.eye(3)
+_MINUS_EYE_NJ = -np.eye(NJ)
+_JOINT_ROWS = np.eye(NV)[6:]  # the posture task's Jacobian (qdd of the joints)
+_DIAG_NV = np.diag_indices(NV)
+
+
+_SUMMED: dict[int, np.ndarray] = {}
+
+
+def _summed_points(n: int) -> np.ndarray:
+    """S^T S for S = [I3 ... I3] (n blocks): the Hessian of |sum of n point forces|^2."""
+    out = _SUMMED.get(n)
+    if out is None:
+        out = _SUMMED[n] = np.tile(_EYE3, (n, n))
+    return out
+
+
+def _point_jacobians(J: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """(n, 3, NV) linear Jacobians of points at offsets ``r`` (n, 3) from a site with Jacobian ``J``
+    (6, NV): J_p - [r]x J_w, i.e. J_p + J_w x r column by column."""
+    Jp, Jw = J[:3], J[3:]
+    x, y, z = r[:, 0:1], r[:, 1:2], r[:, 2:3]
+    out = np.empty((len(r), 3, J.shape[1]))
+    out[:, 0] = Jp[0] + z * Jw[1] - y * Jw[2]
+    out[:, 1] = Jp[1] + x * Jw[2] - z * Jw[0]
+    out[:, 2] = Jp[2] + y * Jw[0] - x * Jw[1]
+    return out
+
+
 def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
@@ -377,6 +406,14 @@ class WholeBodyController:
         self._hand_stiff = {l: self._near_contact(l) for l in HANDS}
         self._object_net = self._object_net_forces() if self.g.hand_force_from_object_motion else {}
         self._pyramids: dict = {}
+        self._admittance_keys: dict = {}  # id(contact) -> (contact, its key in _admittance)
+        #: (QP layout, daqp sense bits of its active inequalities) of the last step: at 500 Hz the
+        #: active set hardly changes, and starting from it halves daqp's time
+        self._qp_working_set: tuple | None = None
+        self._lifted: dict[str, bool] = {}  # object -> moved vertically by the plan (_lifted_in_plan)
+        self._object_root: dict[str, int] = {}  # object -> its root body (-1: not in the model)
+        self._touch_key: tuple | None = None  # (data, time, ncon) of the contact scan in _touch_roots
+        self._touch_roots: dict[str, set] = {}
         self.t0 = 0.0
         self.status = WbcStatus()
         self.last_forces: dict[str, np.ndarray] = {}
@@ -524,11 +561,18 @@ class WholeBodyController:
         if b < 0:
             return None
         P, Q = tr.objects[oid]
-        if np.ptp(P[:, 2]) > 0.01 and not lifted:  # a lifted object: the hands carry it to the plan (a slipping box is not followed)
+        if not lifted and self._lifted_in_plan(oid):  # a lifted object: the hands carry it to the plan (a slipping box is not followed)
             return None
         R_act = data.xmat[b].reshape(3, 3)
         return (data.xpos[b] + R_act @ off, R_act, P[i] + s * (P[i + 1] - P[i]),
                 frames.quat_to_matrix(Q[i if s < 0.5 else i + 1]))
+
+    def _lifted_in_plan(self, oid: str) -> bool:
+        """Whether the plan moves object ``oid`` up or down by more than 1 cm (a carried object)."""
+        out = self._lifted.get(oid)
+        if out is None:
+            out = self._lifted[oid] = bool(np.ptp(self.traj.objects[oid][0][:, 2]) > 0.01)
+        return out
 
     def _on_actual_object(self, data: mujoco.MjData, oid: str, p: np.ndarray, i: int, s: float,
                           lifted: bool = False) -> np.ndarray:
@@ -550,7 +594,11 @@ class WholeBodyController:
             self._admittance.pop(limb, None)
             return np.zeros(3)
         lead = fr[0] - fr[2]  # the object's actual minus planned CoM
-        key = (c.object_id, None if c.position is None else tuple(np.round(c.position, 6)))
+        held = self._admittance_keys.get(id(c))
+        if held is None:  # (the contact is kept with its key, so its id is not reused)
+            held = self._admittance_keys[id(c)] = (c, (c.object_id, None if c.position is None
+                                                       else tuple(np.round(c.position, 6))))
+        key = held[1]
         st = self._admittance.get(limb)
         if st is None or st[0] != key:
             st = self._admittance[limb] = [key, 0.0]
@@ -733,13 +781,15 @@ class WholeBodyController:
     @staticmethod
     def _tangents(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Two unit tangents of the unit normal ``n`` (t1, t2, n right-handed)."""
-        t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
-        t1 /= np.linalg.norm(t1)
-        return t1, np.cross(n, t1)
+        x, y, z = float(n[0]), float(n[1]), float(n[2])
+        t1 = np.array([0.0, z, -y]) if abs(x) < 0.9 else np.array([-z, 0.0, x])  # n x e_x, or n x e_y
+        t1 /= np.sqrt(t1 @ t1)
+        a, b, c = t1
+        return t1, np.array([y * c - z * b, z * a - x * c, x * b - y * a])
 
     def _pyramid(self, normal, mu: float) -> np.ndarray:
         """(5,3) rows of a linearised friction cone: 4 tangent rows (<= 0) and the normal; cached per normal."""
-        key = (tuple(np.round(np.asarray(normal, float), 9)), mu)
+        key = (np.asarray(normal, float).tobytes(), mu)
         rows = self._pyramids.get(key)
         if rows is None:
             n = np.asarray(normal, float) / max(np.linalg.norm(normal), 1e-9)
@@ -772,15 +822,32 @@ class WholeBodyController:
     def _touching(self, data: mujoco.MjData, limb: str, object_id: str) -> bool:
         """True when the hand's collision box has a MuJoCo contact with a geom of ``object_id``."""
         hg = self.hand_geom.get(limb, -1)
-        ob = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, object_id)
-        if hg < 0 or ob < 0:
+        root = self._object_root.get(object_id)
+        if root is None:
+            ob = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, object_id)
+            root = self._object_root[object_id] = int(self.model.body_rootid[ob]) if ob >= 0 else -1
+        if hg < 0 or root < 0:
             return False
-        for k in range(data.ncon):
-            g1, g2 = data.contact[k].geom
-            other = g2 if g1 == hg else g1 if g2 == hg else -1
-            if other >= 0 and self.model.body_rootid[self.model.geom_bodyid[other]] == self.model.body_rootid[ob]:
-                return True
-        return False
+        return root in self._hand_contact_roots(data)[limb]
+
+    def _hand_contact_roots(self, data: mujoco.MjData) -> dict[str, set]:
+        """hand -> root bodies its collision box touches in the current contact list; computed once
+        per control step (compute() drops the last scan: mj_step1 renews the contact list without
+        changing data.time); the list is scanned with numpy, not per contact in Python."""
+        key = (id(data), float(data.time), int(data.ncon))
+        if self._touch_key != key:
+            m, n = self.model, int(data.ncon)
+            geoms = data.contact.geom[:n] if n else np.zeros((0, 2), int)
+            roots = {}
+            for limb, hg in self.hand_geom.items():
+                if hg < 0:
+                    roots[limb] = set()
+                    continue
+                other = np.where(geoms[:, 0] == hg, geoms[:, 1], np.where(geoms[:, 1] == hg, geoms[:, 0], -1))
+                other = other[other >= 0]
+                roots[limb] = set(m.body_rootid[m.geom_bodyid[other]].tolist())
+            self._touch_roots, self._touch_key = roots, key
+        return self._touch_roots
 
     def _support_box(self, data: mujoco.MjData, feet: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Contact sole corners as a box (lo, hi) in the pelvis heading frame R (2x2), shrunk by the margin."""
@@ -790,18 +857,17 @@ class WholeBodyController:
         yaw = np.arctan2(Rp[1, 0], Rp[0, 0])
         c, s_ = np.cos(yaw), np.sin(yaw)
         H = np.array([[c, s_], [-s_, c]])  # world xy -> heading frame
-        pts = []
-        for lf in feet:
-            b = self.foot_body[lf]
-            pts.extend((data.xpos[b] + data.xmat[b].reshape(3, 3) @ p)[:2] for p in _SOLE_CORNERS)
-        loc = np.array(pts) @ H.T
+        pts = np.concatenate([data.xpos[b] + _SOLE_CORNERS @ data.xmat[b].reshape(3, 3).T
+                              for b in (self.foot_body[lf] for lf in feet)])
+        loc = pts[:, :2] @ H.T
         lo, hi = loc.min(axis=0) + self.g.com_margin, loc.max(axis=0) - self.g.com_margin
         return lo, np.maximum(hi, lo), H
 
     def _on_arm(self, J: np.ndarray, limb: str) -> np.ndarray:
         """``J`` with only the columns of hand ``limb``'s own arm (a task its arm alone carries out)."""
         out = np.zeros_like(J)
-        out[:, self._arm_cols[limb]] = J[:, self._arm_cols[limb]]
+        cols = self._arm_cols[limb]
+        out[:, cols] = J[:, cols]
         return out
 
     def _step_adjustment(self, data: mujoco.MjData, com: np.ndarray, com_v: np.ndarray, phase, t: float, i: int,
@@ -874,6 +940,8 @@ class WholeBodyController:
         self._admittance.clear()
         self._com_shift[:] = 0.0
         self._angmom_prev = None
+        self._touch_key = None
+        self._qp_working_set = None
 
     def observe(self, data: mujoco.MjData) -> None:
         """Read the contact forces of the step just taken (call after ``mj_step2``: only then do
@@ -890,6 +958,7 @@ class WholeBodyController:
         i, s = tr.index_at(t)
         after_end = t >= tr.duration
         self._push_force.clear()
+        self._touch_key = None  # mj_step1 has just recomputed the contacts (at an unchanged data.time)
 
         def lerp(a):
             return a[i] + s * (a[i + 1] - a[i])
@@ -925,10 +994,12 @@ class WholeBodyController:
         corner_J = {}
         for limb, sid in self.site_id.items():
             mujoco.mj_jacSite(m, data, self._jp, self._jr, sid)
-            J = np.vstack([self._jp[:, dofs], self._jr[:, dofs]])
+            J = np.empty((6, NV))
+            J[:3], J[3:] = self._jp[:, dofs], self._jr[:, dofs]
             site_J[limb] = J
             mujoco.mj_jacDot(m, data, self._jdp, self._jdr, data.site_xpos[sid], m.site_bodyid[sid])
-            jdv = np.concatenate([self._jdp[:, dofs] @ v, self._jdr[:, dofs] @ v])
+            jdv = np.empty(6)
+            jdv[:3], jdv[3:] = self._jdp[:, dofs] @ v, self._jdr[:, dofs] @ v
             vel = J @ v
             p, Rm = data.site_xpos[sid], data.site_xmat[sid].reshape(3, 3)
             if limb in FEET:
@@ -936,12 +1007,8 @@ class WholeBodyController:
                     task(J, -jdv - g.contact_kd * vel, g.w_contact)
                     # sole corner point Jacobians (forces act there)
                     bid = self.foot_body[limb]
-                    Rb, pb = data.xmat[bid].reshape(3, 3), data.xpos[bid]
-                    cj = []
-                    for c in _SOLE_CORNERS:
-                        r = pb + Rb @ c - p
-                        cj.append(J[:3] - _skew(r) @ J[3:])
-                    corner_J[limb] = cj
+                    r = data.xpos[bid] + _SOLE_CORNERS @ data.xmat[bid].reshape(3, 3).T - p  # (4, 3)
+                    corner_J[limb] = list(_point_jacobians(J, r))
                 else:
                     p_plan, v_ref, a_ref = lerp(R_.site_p[limb]), dlerp(R_.site_v[limb]), dlerp(R_.site_a[limb])
                     p_ref = p_plan
@@ -1066,13 +1133,14 @@ class WholeBodyController:
                 if wb > 0.0:
                     cols = self._arm_cols[limb] - 6
                     wp[cols] = wp[cols] + wb * (g.hand_release_posture - wp[cols])
-        task(np.eye(NV)[6:], b, wp)
+        task(_JOINT_ROWS, b, wp)
 
         A = np.vstack(rows_A)
         bb = np.concatenate(rows_b)
         w = np.concatenate(rows_w)
         Aw = A * w[:, None]
-        Hqq = A.T @ Aw + g.reg_qdd * np.eye(NV)
+        Hqq = A.T @ Aw
+        Hqq[_DIAG_NV] += g.reg_qdd
         gq = -Aw.T @ bb
 
         # --- contact force variables and their constraints
@@ -1089,11 +1157,12 @@ class WholeBodyController:
         nx = NJ + NV + nf + nm
         H = np.zeros((nx, nx))
         f = np.zeros(nx)
-        H[:NJ, :NJ] = g.reg_tau * np.eye(NJ)
         H[NJ : NJ + NV, NJ : NJ + NV] = Hqq
         f[NJ : NJ + NV] = gq
-        H[NJ + NV : NJ + NV + nf, NJ + NV : NJ + NV + nf] = g.reg_force * np.eye(nf)
-        H[NJ + NV + nf :, NJ + NV + nf :] = g.w_hand_moment * np.eye(nm)
+        diag = np.arange(nx)
+        H[diag[:NJ], diag[:NJ]] = g.reg_tau
+        H[diag[NJ + NV : NJ + NV + nf], diag[NJ + NV : NJ + NV + nf]] = g.reg_force
+        H[diag[NJ + NV + nf :], diag[NJ + NV + nf :]] = g.w_hand_moment
         # force tracking: per foot, the sum of its corner forces -> planned force
         by_limb: dict[str, list[int]] = {}
         for k, (limb, *_r) in enumerate(points):
@@ -1104,18 +1173,17 @@ class WholeBodyController:
             if limb in HANDS:
                 continue
             f_ref = lerp(tr.forces[limb]) if limb in tr.forces else np.zeros(3)
-            Sel = np.zeros((3, nf))
-            for k in ks:
-                Sel[:, 3 * k : 3 * k + 3] = np.eye(3)
-            H[NJ + NV : NJ + NV + nf, NJ + NV : NJ + NV + nf] += g.w_force * Sel.T @ Sel
-            f[NJ + NV : NJ + NV + nf] += -g.w_force * Sel.T @ f_ref
+            # w_force |sum of the limb's point forces - f_ref|^2 (its points are consecutive)
+            a, e = NJ + NV + 3 * ks[0], NJ + NV + 3 * ks[-1] + 3
+            H[a:e, a:e] += g.w_force * _summed_points(len(ks))
+            f[a:e] -= g.w_force * np.tile(f_ref, len(ks))
 
         # dynamics: M qdd - S^T tau - Jc^T f = -h
         mujoco.mj_fullM(m, data, self._M)
         Mr = self._M[dofs, dofs]
         h = data.qfrc_bias[dofs] - data.qfrc_passive[dofs]
         Aeq = np.zeros((NV, nx))
-        Aeq[6:, :NJ] = -np.eye(NJ)
+        Aeq[6:, :NJ] = _MINUS_EYE_NJ
         Aeq[:, NJ : NJ + NV] = Mr
         for k, cj in enumerate([p[1] for p in points] + [hp[1] for hp in hand_points]):
             Aeq[:, NJ + NV + 3 * k : NJ + NV + 3 * k + 3] = -cj.T
@@ -1170,8 +1238,17 @@ class WholeBodyController:
         lower = np.concatenate([-self.limits, beq, bhand, bl, -mlim])
         sense = np.concatenate([np.zeros(NJ), np.full(NV + len(bhand), 5), np.zeros(len(bu) + nm)]).astype(np.int32)
         key = tuple(sorted(by_limb))
+        layout = (key, nx, len(upper))
+        if self._qp_working_set is not None and self._qp_working_set[0] == layout:
+            sense |= self._qp_working_set[1]  # warm start: the last step's active inequalities
         x, _fval, flag, info = daqp.solve(H, f, A_all, upper, lower, sense)
         ok = flag >= 1 and np.all(np.isfinite(x))
+        self._qp_working_set = None
+        if ok and isinstance(info, dict) and "lam" in info:
+            lam = np.asarray(info["lam"])
+            active = (lam != 0.0) & (sense & 4 == 0)  # inequalities only: equalities are immutable (5)
+            ws = np.where(active, np.where(lam < 0.0, 3, 1), 0).astype(np.int32)  # 1 active, +2 at its lower bound
+            self._qp_working_set = (layout, ws)
         st = self.status
         st.t_ref, st.qp_ok, st.contacts = t, bool(ok), key
         if ok:
@@ -1191,6 +1268,6 @@ class WholeBodyController:
         ep = float(np.linalg.norm(data.qpos[self.bq : self.bq + 3] - lerp(tr.base_pos)))
         ej = qj - q_ref
         st.base_position_error = ep
-        st.joint_error_rms = float(np.sqrt(np.mean(ej**2)))
-        st.joint_error_max = float(np.max(np.abs(ej)))
+        st.joint_error_rms = float(np.sqrt(ej @ ej / NJ))
+        st.joint_error_max = float(np.abs(ej).max())
         return tau
