@@ -11,6 +11,7 @@ import pytest
 from to_cases import simulation
 
 from lomanip_sim.robot_model import FOOT_SITES, G1_JOINT_NAMES
+from lomanip_sim.trajectory import HANDS
 from lomanip_sim.wbc import NJ, WbcGains, WholeBodyController, _rot_error
 
 
@@ -558,3 +559,40 @@ def test_a_touching_hand_on_a_pushed_object_feeds_forward_its_measured_force(mea
     assert checked > 50  # the hands touched the box over most of the window
     assert (differ == 0) if measured else (differ > checked // 2)
     assert not sim.has_fallen()
+
+
+def test_a_released_hand_near_a_pushed_object_rides_on_its_actual_pose():
+    """``hand_registered_after_release``: after the plan lets go of an object it pushes on the floor,
+    a free hand near it follows the object's actual pose (the plan placed the hand relative to the
+    planned object), fully within ``hand_registered_near`` and not at all beyond ``_far``. The push
+    of make demo: the trolley lagged its plan by 4 cm and the lowered right hand struck its bar."""
+    import dataclasses
+
+    let_go = 2.0
+    sim, tr = _lift_box_let_go(let_go)
+    P, Q = tr.objects["box"]  # held where it stands: an object the plan keeps at one height
+    tr = dataclasses.replace(tr, objects={**tr.objects, "box": (np.repeat(P[:1], len(P), 0), np.repeat(Q[:1], len(Q), 0))})
+    on = WholeBodyController(sim.world, tr)
+    off = WholeBodyController(sim.world, tr, dataclasses.replace(WbcGains(), hand_registered_after_release=False))
+    assert sorted(on._registered) == ["left_hand", "right_hand"] and not off._registered
+    for limb, regs in on._registered.items():
+        (oid, w), = regs
+        assert oid == "box" and np.all(w[tr.t < let_go] == 0.0) and w[np.searchsorted(tr.t, let_go + 0.01)] == 1.0
+        assert np.all((0.0 <= w) & (w <= 1.0))
+    box = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, sim.world.objects["box"].body_name)
+    qadr = sim.model.jnt_qposadr[sim.model.body_jntadr[box]]
+    lag = np.array([0.04, -0.01, 0.0])
+    sim.data.qpos[qadr : qadr + 3] += lag  # the box 4 cm away from its planned place
+    mujoco.mj_forward(sim.model, sim.data)
+
+    def shifts(wbc, t):
+        wbc.t0 = float(sim.data.time) - t
+        wbc.compute(sim.data)
+        return {l: np.array(wbc.registered_shifts.get(l, np.zeros(3))) for l in HANDS}
+
+    for limb, shift in shifts(on, let_go + 0.05).items():
+        assert np.allclose(shift, lag, atol=1e-6), (limb, shift)  # just released: on the box, weight 1
+    for limb, shift in shifts(on, let_go - 0.2).items():
+        assert np.allclose(shift, 0.0)  # still in the contact: hand_follows_object's business, not this
+    for limb, shift in shifts(off, let_go + 0.05).items():
+        assert np.allclose(shift, 0.0)

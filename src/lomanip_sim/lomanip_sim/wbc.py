@@ -216,6 +216,14 @@ class WbcGains:
     # 0.03 the demo push's hands still caught the bar (2 of 4 pushes that fell with the bar under the
     # hands no longer fall at 0.05: docs/execution.md, session 24)
     hand_retreat_margin: float = 0.05
+    # after a contact with an object pushed on the floor, a free hand's reference rides on the
+    # object's actual pose as long as the planned hand box is near the planned object (weight 1
+    # within hand_registered_near of it, 0 beyond hand_registered_far): the plan's hand moves
+    # relative to where it planned the object, and a trolley that lagged its plan by 4 cm took the
+    # plan's lowered right hand on its bar 1 s after the release and rolled 9 cm too far (session 25)
+    hand_registered_after_release: bool = True
+    hand_registered_near: float = 0.05
+    hand_registered_far: float = 0.15
     # while a hand's grasp offset is active (approach ramp, contact, release) its position task acts
     # on its own arm only and the torso tracks the plan's (as in a detour): with the full Jacobian
     # the offsets (6-7 cm back and up, off the planned posture) pulled the whole body back; the push
@@ -310,6 +318,7 @@ class _Refs:
 
 
 _EYE3 = np.eye(3)
+_ZERO3 = np.zeros(3)
 _MINUS_EYE_NJ = -np.eye(NJ)
 _JOINT_ROWS = np.eye(NV)[6:]  # the posture task's Jacobian (qdd of the joints)
 _DIAG_NV = np.diag_indices(NV)
@@ -395,6 +404,10 @@ class WholeBodyController:
         self._normals: dict = {}  # id(contact) -> (N,3) normals along the grid (_contact_normals)
         self._object_body: dict[str, tuple] = {}  # object -> (body id, CoM offset in the body frame)
         self._detoured = {l: np.zeros(traj.n, bool) for l in HANDS}
+        self._registered: dict[str, list] = {}  # hand -> [(object, (N,) weight)] (_registration)
+        #: hand -> shift (world, m) of its reference this step by hand_registered_after_release
+        self.registered_shifts: dict[str, np.ndarray] = {}
+        self._lifted: dict[str, bool] = {}  # object -> moved vertically by the plan (_lifted_in_plan)
         self._arm_only = {l: np.zeros(traj.n, bool) for l in HANDS}  # hand position task on its own arm only
         self.approach_lifts: list[tuple[str, float, float]] = []  # (hand, contact start, largest lift in m)
         self.retreat_lifts: list[tuple[str, float, float]] = []  # (hand, contact end, largest lift in m)
@@ -410,7 +423,6 @@ class WholeBodyController:
         #: (QP layout, daqp sense bits of its active inequalities) of the last step: at 500 Hz the
         #: active set hardly changes, and starting from it halves daqp's time
         self._qp_working_set: tuple | None = None
-        self._lifted: dict[str, bool] = {}  # object -> moved vertically by the plan (_lifted_in_plan)
         self._object_root: dict[str, int] = {}  # object -> its root body (-1: not in the model)
         self._touch_key: tuple | None = None  # (data, time, ncon) of the contact scan in _touch_roots
         self._touch_roots: dict[str, set] = {}
@@ -495,6 +507,8 @@ class WholeBodyController:
                         sp[limb] = sp[limb] + lift[:, None] * normals
                         self._arm_only[limb] |= lift > 1e-9  # as under the grasp offsets: the arm moves the hand
                         self.retreat_lifts.append((limb, end, float(lift.max())))
+                if self.g.hand_registered_after_release:
+                    self._registered[limb] = self._registration(limb, t, sp[limb], sR[limb], probe)
             if self.g.hand_arm_only_near_contact:
                 self._arm_only[limb] |= np.linalg.norm(off, axis=1) > 1e-9
             if obstacles and self.hand_geom[limb] >= 0:
@@ -718,6 +732,27 @@ class WholeBodyController:
                         end = float(tr.t[np.flatnonzero(sel)[-1]])
                 out.append((end, ph.start, prev))
             prev = c
+        return out
+
+    def _registration(self, limb: str, t: np.ndarray, p: np.ndarray, R: np.ndarray, probe) -> list:
+        """[(object, (N,) weight)]: after each contact of ``limb`` with an object the plan pushes on the
+        floor, until the hand's next contact, 1 while the hand box at its planned pose (``p``, ``R``)
+        is within ``hand_registered_near`` of the planned movable objects, falling smoothly to 0 at
+        ``hand_registered_far`` (``WbcGains.hand_registered_after_release``)."""
+        g, out = self.g, []
+        starts = [s0 for s0, _c in self._contact_starts(limb)]
+        for _end, c_end, c in self._contact_ends(limb):
+            oid = c.object_id
+            if oid not in self.traj.objects or self._lifted_in_plan(oid):
+                continue
+            nxt = min([s0 for s0 in starts if s0 >= c_end], default=np.inf)
+            w = np.zeros(len(t))
+            for k in np.flatnonzero((t >= c_end) & (t < nxt)):
+                d = probe.clearance(p[k], R[k], int(k))[1]
+                u = (g.hand_registered_far - d) / max(g.hand_registered_far - g.hand_registered_near, 1e-9)
+                w[k] = float(smoothstep(np.clip(u, 0.0, 1.0)))
+            if np.any(w > 0):
+                out.append((oid, w))
         return out
 
     def _lift_normals(self, normals: np.ndarray) -> np.ndarray:
@@ -1030,6 +1065,12 @@ class WholeBodyController:
                     task(J, b, g.w_swing)
             else:
                 p_ref = p_plan = lerp(R_.site_p[limb])
+                registered = None  # free in the plan, near an object it pushed: the object's displacement
+                if planned.get(limb) is None:
+                    for oid, wr in self._registered.get(limb, ()):
+                        w_r = wr[i] + s * (wr[i + 1] - wr[i])
+                        if w_r > 0.0:
+                            registered = w_r * (self._on_actual_object(data, oid, p_plan, i, s) - p_plan)
                 if g.hand_follows_object and limb in contacts and contacts[limb] is not None:
                     p_ref = self._on_actual_object(data, contacts[limb].object_id, p_ref, i, s)
                     if g.hand_push_admittance:
@@ -1044,6 +1085,9 @@ class WholeBodyController:
                 if body_frame:  # a free hand: the plan's hand carried with the actual torso, moved by its arm
                     body_frame_hands = True
                     p_ref, R_ref = self._on_torso(data, p_plan, R_ref, i, s)
+                if registered is not None:
+                    p_ref = p_ref + registered
+                self.registered_shifts[limb] = registered if registered is not None else _ZERO3
                 e = p_ref - p
                 kp, kd, wh = (g.hand_kp, g.hand_kd, g.w_hand) if stiff else (g.free_hand_kp, g.free_hand_kd, g.w_free_hand)
                 # (a free hand in the torso frame keeps the plan's world velocity and acceleration as
