@@ -2,8 +2,8 @@
 
 Why: MuJoCo renders on Mesa's CPU renderer here, 40-200 ms per RGB-D frame on 2 cores (with the
 load and Mesa's thread count). Rendered on a thread of the simulator's process, the camera at 15 Hz
-competed with the physics and control thread for the CPU and Python's GIL: the push executed in the graph at a real-time factor of 0.36,
-against 0.63 with the camera at 0.5 Hz (session 25). In its own process the render only shares
+competed with the physics and control thread for the CPU and Python's GIL: the push executed in
+the graph at a real-time factor of 0.36, against 0.63 with the camera at 0.5 Hz (session 25). In its own process the render only shares
 the CPU, and Mesa is held to ``render_threads`` threads so that a core stays with physics.
 
 Same interface as :class:`~lomanip_sim.camera.RGBDCamera` for what the sim node uses: ``render``,
