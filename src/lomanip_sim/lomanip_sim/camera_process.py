@@ -3,8 +3,9 @@
 Why: MuJoCo renders on Mesa's CPU renderer here, 40-200 ms per RGB-D frame on 2 cores (with the
 load and Mesa's thread count). Rendered on a thread of the simulator's process, the camera at 15 Hz
 competed with the physics and control thread for the CPU and Python's GIL: the push executed in
-the graph at a real-time factor of 0.36, against 0.63 with the camera at 0.5 Hz (session 25). In its own process the render only shares
-the CPU, and Mesa is held to ``render_threads`` threads so that a core stays with physics.
+the graph at a real-time factor of 0.36, against 0.63 with the camera at 0.5 Hz (session 25). In
+its own process the render only shares the CPU, and Mesa is held to ``render_threads`` threads so
+that a core stays with physics.
 
 Same interface as :class:`~lomanip_sim.camera.RGBDCamera` for what the sim node uses: ``render``,
 ``intrinsics``, ``close``. Frames come back through shared memory, one frame at a time.
@@ -21,7 +22,7 @@ from multiprocessing.connection import Connection
 
 import numpy as np
 
-from .camera import CameraError, CameraPose, RGBDFrame
+from .camera import CameraError, CameraPose, RGBDCamera, RGBDFrame
 
 #: seconds to wait for the worker to start (import MuJoCo, build its GL context) or to render a frame
 START_TIMEOUT = 60.0
@@ -32,8 +33,6 @@ def _serve(conn) -> None:
     """Worker process: build the camera from the first message, then render each (qpos, time)
     request into the shared buffer and answer with the frame's time and camera pose."""
     model, camera_name, width, height, shm_name = conn.recv()
-    from .camera import RGBDCamera
-
     try:
         cam = RGBDCamera(model, camera_name, width, height)
     except Exception as e:  # noqa: BLE001 - reported to the parent, which raises CameraError
@@ -75,7 +74,6 @@ def _serve(conn) -> None:
 def main() -> None:
     """``python -m lomanip_sim.camera_process FD``: serve the connection on socket FD."""
     import signal
-    from multiprocessing.connection import Connection
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole group: the parent closes us
     _serve(Connection(int(sys.argv[1])))

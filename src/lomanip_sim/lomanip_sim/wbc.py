@@ -319,7 +319,6 @@ class _Refs:
 
 _EYE3 = np.eye(3)
 _ZERO3 = np.zeros(3)
-_MINUS_EYE_NJ = -np.eye(NJ)
 _JOINT_ROWS = np.eye(NV)[6:]  # the posture task's Jacobian (qdd of the joints)
 _DIAG_NV = np.diag_indices(NV)
 
@@ -424,7 +423,7 @@ class WholeBodyController:
         #: active set hardly changes, and starting from it halves daqp's time
         self._qp_working_set: tuple | None = None
         self._object_root: dict[str, int] = {}  # object -> its root body (-1: not in the model)
-        self._touch_key: tuple | None = None  # (data, time, ncon) of the contact scan in _touch_roots
+        self._touch_key: tuple | None = None  # (data, time, ncon) of the scan in _hand_contact_roots
         self._touch_roots: dict[str, set] = {}
         self.t0 = 0.0
         self.status = WbcStatus()
@@ -1203,8 +1202,9 @@ class WholeBodyController:
         f = np.zeros(nx)
         H[NJ : NJ + NV, NJ : NJ + NV] = Hqq
         f[NJ : NJ + NV] = gq
+        # (the torque block stays empty: the QP is solved without the torques, see below, and their
+        # regulariser reg_tau enters there)
         diag = np.arange(nx)
-        H[diag[:NJ], diag[:NJ]] = g.reg_tau
         H[diag[NJ + NV : NJ + NV + nf], diag[NJ + NV : NJ + NV + nf]] = g.reg_force
         H[diag[NJ + NV + nf :], diag[NJ + NV + nf :]] = g.w_hand_moment
         # force tracking: per foot, the sum of its corner forces -> planned force
@@ -1222,12 +1222,12 @@ class WholeBodyController:
             H[a:e, a:e] += g.w_force * _summed_points(len(ks))
             f[a:e] -= g.w_force * np.tile(f_ref, len(ks))
 
-        # dynamics: M qdd - S^T tau - Jc^T f = -h
+        # dynamics: M qdd - S^T tau - Jc^T f = -h (the tau columns, -I on the joint rows, are left
+        # out: the joint rows are solved for tau below)
         mujoco.mj_fullM(m, data, self._M)
         Mr = self._M[dofs, dofs]
         h = data.qfrc_bias[dofs] - data.qfrc_passive[dofs]
         Aeq = np.zeros((NV, nx))
-        Aeq[6:, :NJ] = _MINUS_EYE_NJ
         Aeq[:, NJ : NJ + NV] = Mr
         for k, cj in enumerate([p[1] for p in points] + [hp[1] for hp in hand_points]):
             Aeq[:, NJ + NV + 3 * k : NJ + NV + 3 * k + 3] = -cj.T
