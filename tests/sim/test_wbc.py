@@ -345,7 +345,7 @@ def test_push_admittance_sets_the_hand_depth_from_the_measured_force():
     sim, tr = simulation("case_lift_box")
     P, Q = tr.objects["box"]  # the box held where it stands: an object kept at one height
     tr = dataclasses.replace(tr, objects={**tr.objects, "box": (np.repeat(P[:1], len(P), 0), np.repeat(Q[:1], len(Q), 0))})
-    wbc = WholeBodyController(sim.world, tr)
+    wbc = WholeBodyController(sim.world, tr, WbcGains(hand_tangential_backoff=0.0))  # the admittance alone
     g, dt = wbc.g, sim.model.opt.timestep
     t = next(0.5 * (ph.start + ph.end) for ph in tr.phases if "left_hand" in ph.contacts)
     i, s = tr.index_at(t)
@@ -596,3 +596,44 @@ def test_a_released_hand_near_a_pushed_object_rides_on_its_actual_pose():
         assert np.allclose(shift, 0.0)  # still in the contact: hand_follows_object's business, not this
     for limb, shift in shifts(off, let_go + 0.05).items():
         assert np.allclose(shift, 0.0)
+
+
+def test_a_pushing_hand_off_its_contact_point_backs_out_along_the_normal():
+    """On a pushed object, a touching hand that is off its contact point along the surface by more
+    than ``hand_backoff_free`` gets its reference backed out along the normal
+    (``hand_tangential_backoff`` x the excess, at most ``hand_backoff_max``); along the normal an
+    error does not count. Session 26's make demo push: the right hand reached the bar 4.6 cm to the
+    side and struck it with 39 N, and the trolley rolled 0.39 m of 0.25 m."""
+    import dataclasses
+
+    sim, tr = simulation("case_lift_box")
+    P, Q = tr.objects["box"]  # the box held where it stands: an object pushed along the floor
+    tr = dataclasses.replace(tr, objects={**tr.objects, "box": (np.repeat(P[:1], len(P), 0), np.repeat(Q[:1], len(Q), 0))})
+    t = next(0.5 * (ph.start + ph.end) for ph in tr.phases if "left_hand" in ph.contacts)
+    i, s = tr.index_at(t)
+    c = tr.phase_at(t).contacts["left_hand"]
+    mujoco.mj_forward(sim.model, sim.data)
+
+    def shift_along_normal(gains: dict, offset) -> float:
+        wbc = WholeBodyController(sim.world, tr, WbcGains(**gains))
+        wbc._on_actual_object(sim.data, "box", np.zeros(3), i, s)  # resolves the object's body
+        n = wbc._contact_normals(c)[i if s < 0.5 else i + 1]
+        sp = wbc.refs.site_p["left_hand"]
+        p_plan = sp[i] + s * (sp[i + 1] - sp[i])
+        sim.data.site_xpos[wbc.site_id["left_hand"]] = p_plan + offset(n)  # where the hand is felt
+        f_des = max(float(n @ (tr.forces["left_hand"][i] + s * (tr.forces["left_hand"][i + 1] - tr.forces["left_hand"][i]))),
+                    wbc.g.push_min_force)  # fmt: skip
+        wbc.measured_forces["left_hand"] = f_des * n  # pressing as desired: the admittance stays put
+        return float(wbc._push_admittance(sim.data, "left_hand", c, t, i, s) @ n)
+
+    def tangent(n):
+        a = np.cross(n, [0.0, 0.0, 1.0]) if abs(n[2]) < 0.9 else np.cross(n, [1.0, 0.0, 0.0])
+        return a / np.linalg.norm(a)
+
+    g = WbcGains()
+    assert shift_along_normal({}, lambda n: 0.01 * tangent(n)) == pytest.approx(0.0, abs=1e-9)  # within the free band
+    assert shift_along_normal({}, lambda n: 0.05 * tangent(n)) == pytest.approx(
+        g.hand_tangential_backoff * (0.05 - g.hand_backoff_free), abs=1e-9)  # 3 cm over: out by 3 cm
+    assert shift_along_normal({}, lambda n: 0.5 * tangent(n)) == pytest.approx(g.hand_backoff_max)  # bounded
+    assert shift_along_normal({}, lambda n: -0.05 * n) == pytest.approx(0.0, abs=1e-9)  # inside, not aside
+    assert shift_along_normal({"hand_tangential_backoff": 0.0}, lambda n: 0.05 * tangent(n)) == pytest.approx(0.0, abs=1e-9)

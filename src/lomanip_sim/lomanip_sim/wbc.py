@@ -282,6 +282,16 @@ class WbcGains:
     push_object_gain: float = 200.0  # N/m
     push_min_force: float = 2.0  # N: a hand keeps touching an object that runs ahead
     push_max_extra: float = 40.0  # N over the plan's normal force
+    # on a pushed object, a touching hand that is off its contact point along the surface (farther
+    # than hand_backoff_free from the plan's point carried with the object) has its reference backed
+    # out along the normal by hand_tangential_backoff times the excess, at most hand_backoff_max
+    # (0: off). Why: in session 26's make demo push the right hand reached the bar 4.6 cm to the
+    # side of its plan while the plan swept it 12 cm sideways in 0.2 s, struck it with 39 N where
+    # 1-5 N were planned, and the trolley rolled 13 cm ahead (0.39 m of 0.25 m); backed off, that
+    # plan pushes 0.25 m and 12 of 15 saved push plans succeed against 11, one falls against two
+    hand_tangential_backoff: float = 1.0  # m per m
+    hand_backoff_free: float = 0.02  # m
+    hand_backoff_max: float = 0.05  # m
     # on a pushed object, a touching hand's force is fed forward as measured (the step before), not as
     # the plan's: the QP took the planned force along the plan's normal (-0.8, 0, 0.6) as given, but
     # the left hand box met the demo's handle bar from behind and below (contact normal (-0.97, 0,
@@ -623,7 +633,14 @@ class WholeBodyController:
         st[1] = float(np.clip(st[1] + self.model.opt.timestep * g.hand_admittance_rate * (f_meas - f_des),
                               -g.hand_admittance_in, g.hand_admittance_out))
         self._push_force[limb] = (n, f_des)
-        return st[1] * n
+        shift = st[1] * n
+        if g.hand_tangential_backoff > 0.0:
+            sp = self.refs.site_p[limb]
+            p_plan = sp[i][:3] + s * (sp[min(i + 1, len(sp) - 1)][:3] - sp[i][:3]) + lead
+            e = data.site_xpos[self.site_id[limb]] - p_plan
+            off = float(np.linalg.norm(e - n * float(n @ e)))  # along the surface
+            shift = shift + n * min(g.hand_backoff_max, g.hand_tangential_backoff * max(0.0, off - g.hand_backoff_free))
+        return shift
 
     def _release_hands(self, data: mujoco.MjData, contacts: dict, t: float, i: int, s: float) -> dict:
         """The phase's contacts less the hand contacts the controller has released (``hand_release``).
