@@ -636,7 +636,7 @@ class WholeBodyController:
         shift = st[1] * n
         if g.hand_tangential_backoff > 0.0:
             sp = self.refs.site_p[limb]
-            p_plan = sp[i][:3] + s * (sp[min(i + 1, len(sp) - 1)][:3] - sp[i][:3]) + lead
+            p_plan = sp[i] + s * (sp[i + 1] - sp[i]) + lead
             e = data.site_xpos[self.site_id[limb]] - p_plan
             off = float(np.linalg.norm(e - n * float(n @ e)))  # along the surface
             shift = shift + n * min(g.hand_backoff_max, g.hand_tangential_backoff * max(0.0, off - g.hand_backoff_free))
