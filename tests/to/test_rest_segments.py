@@ -75,7 +75,7 @@ def test_grip_kept_across_a_cut_in_a_carry(g1, s1):
     data = ProblemData(s1, g1)
     lift = solver.segment_problem(s1, 3.0, 3.8, data.x_init, _scene_poses(s1))
     assert [kf.subtask_index for kf in lift.keyframes] == [1]
-    assert ProblemData(lift, g1, moving=data.moving, pairs=data.pairs, stand=data.x_init).kf_knots == {}
+    assert ProblemData(lift, g1, moving=data.moving, pairs=data.pairs, stand=data.x_init, env_pairs=data.env_pairs).kf_knots == {}
     t0, t1 = 3.8, 11.0
     pose = np.array([0.9, 0.3, 0.55, 0.05, -0.04, 0.6])  # lifted, tilted, turned
     grips = {"left_hand": ("box", np.array([0.02, 0.2, 0.06]), np.array([0.0, 1.0, 0.0])),
@@ -84,7 +84,7 @@ def test_grip_kept_across_a_cut_in_a_carry(g1, s1):
     c = seg.phases[0].contacts["left_hand"]
     R = rpy_to_rot(pose[3:])
     np.testing.assert_allclose(c.position, pose[:3] + R @ grips["left_hand"][1], atol=1e-12)
-    sd = ProblemData(seg, g1, moving=data.moving, pairs=data.pairs, stand=data.x_init)
+    sd = ProblemData(seg, g1, moving=data.moving, pairs=data.pairs, stand=data.x_init, env_pairs=data.env_pairs)
     kf_t = [seg.keyframe_time(kf) for kf in seg.keyframes]
     assert sorted(sd.grid.t[k] for k in sd.kf_knots) == pytest.approx([t for t in kf_t if t <= t1 - t0 + 1e-9])
     win, _ = solver.get_window(g1, sd.structure)
@@ -111,7 +111,7 @@ def test_carried_object_keeps_its_place_relative_to_the_base(g1, s1):
     seg = solver.segment_problem(s1, 3.8, 11.0, data.x_init, {**_scene_poses(s1), "box": pose})
     seg_walk = replace(seg, phases=[ph for ph in seg.phases if ph.end <= 5.4 + 1e-9], placement_goals=[],
                        options=replace(seg.options, stepping_warm_start=False))  # x_guess = the nominal
-    sd = ProblemData(seg_walk, g1, moving=data.moving, pairs=data.pairs, stand=data.x_init)
+    sd = ProblemData(seg_walk, g1, moving=data.moving, pairs=data.pairs, stand=data.x_init, env_pairs=data.env_pairs)
     X, traj = sd.x_guess, sd.obj_nom["box"]
     rel0 = _relative_to_base(X[0], traj[0])
     for k in range(1, sd.grid.K):

@@ -11,7 +11,7 @@ def _segment(g1, prob, t0, t1):
     poses = {o.id: np.concatenate([np.asarray(o.position, float), o.rpy()]) for o in prob.objects}
     sp = solver.segment_problem(prob, t0, t1, prob.initial_configuration, poses)
     whole = ProblemData(prob, g1)
-    return ProblemData(sp, g1, moving=whole.moving, pairs=whole.pairs, stand=whole.x_init), poses
+    return ProblemData(sp, g1, moving=whole.moving, pairs=whole.pairs, stand=whole.x_init, env_pairs=whole.env_pairs), poses
 
 
 def _drifted_end(win, sd, oid, drift):

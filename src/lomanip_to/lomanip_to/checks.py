@@ -3,8 +3,9 @@
 Each check returns a float (worst value, SI units) plus where it happens; ``run_checks`` collects
 them with pass/fail against tolerances.  Penetration is the measure of DESIGN.md sec. 7: at each
 time the sum of negative signed distances between robot collision bodies (spheres, see
-``model.py``) and the objects / floor, plus robot self-collision pairs; intended contacts (a hand on
-the object it holds, a foot on the surface it stands on) are excluded.
+``model.py``) and the objects / floor, plus robot self-collision pairs and the depth of a carried
+object in another object; intended contacts (a hand on the object it holds, a foot on the surface it
+stands on) are excluded.
 """
 
 from __future__ import annotations
@@ -32,6 +33,49 @@ def sphere_box_distance(c, centre, R, half, r):
     loc = R.T @ (np.asarray(c) - centre)
     q = np.abs(loc) - half
     return float(np.linalg.norm(np.maximum(q, 0)) + min(q.max(), 0.0) - r)
+
+
+def _face_grid(half: np.ndarray, n: int = 7) -> np.ndarray:
+    """(m, 3) points on the six faces of a box (n x n per face), in its frame."""
+    u = np.linspace(-1.0, 1.0, n)
+    a, b = np.meshgrid(u, u)
+    a, b = a.ravel(), b.ravel()
+    out = []
+    for ax in range(3):
+        o1, o2 = [i for i in range(3) if i != ax]
+        for sgn in (-1.0, 1.0):
+            f = np.zeros((a.size, 3))
+            f[:, ax], f[:, o1], f[:, o2] = sgn, a, b
+            out.append(f * half)
+    return np.concatenate(out)
+
+
+def carried_object_depths(data, res, k: int) -> list:
+    """Depths (m) at knot ``k`` of the faces of each object carried free (off every support) in
+    the other objects' primitives: a box through a table is not physics, whoever holds it.  Faces
+    are sampled 7 x 7, so an edge of the other object between samples is missed by at most a few mm."""
+    from .discretize import obj_prims_world
+
+    out = []
+    for oid, poses in res.object_pose_knots.items():
+        if data.obj_mode(k, oid) != "free":
+            continue
+        o = data.prob.object(oid)
+        pts = []
+        for (c, R, he) in obj_prims_world(o, poses[k][:3], poses[k][3:]):
+            pts.append(c + _face_grid(he) @ R.T)
+        pts = np.concatenate(pts)
+        for other in data.prob.objects:
+            if other.id == oid:
+                continue
+            op = res.object_pose_knots.get(other.id)
+            prims = obj_prims_world(other, op[k][:3], op[k][3:]) if op is not None else obj_prims_world(other)
+            for (c, R, he) in prims:
+                q = np.abs((pts - c) @ R) - he
+                inside = q.max(axis=1)
+                if inside.min() < 0:
+                    out.append(float(-inside.min()))
+    return out
 
 
 def penetration_per_knot(model: G1Model, data, res):
@@ -72,6 +116,7 @@ def penetration_per_knot(model: G1Model, data, res):
             d = np.linalg.norm(cs[i] - cs[j]) - model.spheres[i].radius - model.spheres[j].radius
             if d < 0:
                 depth.append(-d)
+        depth.extend(carried_object_depths(data, res, k))
         total[k] = float(np.sum(depth)) if depth else 0.0
         mx = max(depth) if depth else 0.0
         if mx > worst:

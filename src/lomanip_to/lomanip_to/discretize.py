@@ -23,6 +23,9 @@ INF = np.inf
 #: kneecap past the shin's), and the demo push's plans stepped a toe into a trolley wheel and a
 #: knee against its deck on MuJoCo's model; the executed robot fell (docs/execution.md, session 8)
 LEG_OBJECT_CLEARANCE = 0.03
+#: m: radius of the point spheres that stand for a carried object in its clearance rows from the
+#: other objects (inset by it, so a sphere touches the object's face: the distance is smooth there)
+CARRIED_POINT_RADIUS = 0.01
 
 #: the carried-object weights (w_carry_*) are off here; S1's task file asks for w_carry_pose 500
 #: (TrajectoryOptions.weights): with the fixed carry nominal S1's carry reached its iteration cap
@@ -79,6 +82,22 @@ def obj_prims_world(o: SceneObject, p=None, rpy=None):
         Rl = rpy_to_rot(np.array([0, 0, pr.yaw]))
         out.append((p + R0 @ np.asarray(pr.position, float), R0 @ Rl, pr.half_extents()))
     return out
+
+
+def carried_points(o: SceneObject, r: float = CARRIED_POINT_RADIUS) -> np.ndarray:
+    """(n, 4) point spheres (centre in the object frame, radius) standing for an object in its
+    clearance rows: a 3 x 3 grid on the bottom and on the top face of each primitive's box, inset by
+    ``r`` so each sphere touches the faces.  A simplification: between the grid points an edge of
+    another object can still cut into a face by up to a few mm (the check samples more densely)."""
+    out = []
+    for pr in o.primitives:
+        he = np.maximum(pr.half_extents() - r, 0.0)
+        Rz = rpy_to_rot(np.array([0.0, 0.0, pr.yaw]))
+        for sz in (-1.0, 1.0):
+            for sx in (-1.0, 0.0, 1.0):
+                for sy in (-1.0, 0.0, 1.0):
+                    out.append([*(np.asarray(pr.position, float) + Rz @ (he * [sx, sy, sz])), r])
+    return np.array(out).reshape(-1, 4)
 
 
 def self_pairs(model: G1Model) -> tuple:
@@ -160,9 +179,10 @@ class ProblemData:
     """All numeric arrays of one TO problem (bounds, parameters, warm start) + its structure."""
 
     def __init__(self, prob: Problem, model: G1Model, moving: list | None = None, pairs: list | None = None,
-                 stand: np.ndarray | None = None):
-        """``moving``/``pairs`` force the moving-object list and collision pairs (subtask segments
-        of a bigger problem share its window structure, so the window is built once); ``stand``
+                 stand: np.ndarray | None = None, env_pairs: list | None = None):
+        """``moving``/``pairs``/``env_pairs`` force the moving-object list, the robot's collision
+        pairs and the carried objects' clearance pairs (subtask segments of a bigger problem share
+        its window structure, so the window is built once); ``stand``
         is the standing posture the nominal returns to (default: the initial configuration)."""
         self.prob = prob
         self.model = model
@@ -181,10 +201,11 @@ class ProblemData:
         else:
             self.prims = [(o.id, pi) for o in prob.objects for pi in range(len(o.primitives))]
             self.pairs = list(pairs)
+        self.env_pairs = list(env_pairs) if env_pairs is not None else self._choose_env_pairs()
         self.structure = Structure(len(self.moving), tuple(s for s, _ in self.pairs),
                                    self_pairs(model) if opt.self_collision else (),
                                    tuple(opt.inertial_torque_groups), opt.interval_momentum_tolerance > 0,
-                                   opt.upper_body_acceleration_limit > 0)
+                                   opt.upper_body_acceleration_limit > 0, len(self.env_pairs))
 
     # ------------------------------------------------------------------ object nominal poses
     def _object_timeline(self):
@@ -572,6 +593,66 @@ class ProblemData:
                     pairs.append((s, (oid, pi)))
         self.pairs = pairs
 
+    def carried_free_knots(self, oid: str) -> list:
+        """Knots at which ``oid`` is carried free (off every support)."""
+        return [k for k in range(self.grid.K) if self.obj_mode(k, oid) == "free"]
+
+    def _choose_env_pairs(self) -> list:
+        """[(object id, point sphere (x, y, z, r) in its frame, (other object id, primitive index))]:
+        the point spheres of each object carried free (:func:`carried_points`) x the primitives of
+        every other object that come within ``pair_prefilter`` of them along the object nominal
+        (heuristic, as :meth:`_choose_pairs`)."""
+        thr = self.w["pair_prefilter"]
+        out = []
+        for oid in self.moving:
+            free = self.carried_free_knots(oid)
+            if not free:
+                continue
+            o = self.prob.object(oid)
+            pts = carried_points(o)
+            knots = free[:: max(1, len(free) // 25)] + [free[-1]]
+            for other in self.prob.objects:
+                if other.id == oid:
+                    continue
+                for pi in range(len(other.primitives)):
+                    dmin = np.full(len(pts), INF)
+                    for k in knots:
+                        pose = self.obj_nom[oid][k]
+                        cw = pose[:3] + pts[:, :3] @ rpy_to_rot(pose[3:]).T
+                        opose = self.obj_nom[other.id][k] if other.id in self.obj_nom else None
+                        c, R, he = (obj_prims_world(other, opose[:3], opose[3:]) if opose is not None
+                                    else obj_prims_world(other))[pi]
+                        q = np.abs((cw - c) @ R) - he
+                        d = np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0) - pts[:, 3]
+                        dmin = np.minimum(dmin, d)
+                    out.extend((oid, tuple(float(v) for v in pts[n]), (other.id, pi))
+                               for n in np.flatnonzero(dmin < thr))
+        return out
+
+    def _env_enabled(self, k: int, oid: str) -> bool:
+        return self.obj_mode(k, oid) == "free"
+
+    def _env_params(self, k: int, i: int, col, P) -> None:
+        oid, pt, (po, pi) = self.env_pairs[i]
+        osel = np.zeros(len(self.moving))
+        osel[self.midx[oid]] = 1.0
+        col[P[f"e{i}_obj"]] = osel
+        col[P[f"e{i}_pt"]] = pt
+        o = self.prob.object(po)
+        pr = o.primitives[pi]
+        sel = np.zeros(len(self.moving) + 1)
+        if po in self.midx:
+            sel[self.midx[po] + 1] = 1
+            col[P[f"e{i}_loc"]] = [*pr.position, math.cos(pr.yaw), math.sin(pr.yaw)]
+            col[P[f"e{i}_pose"]] = np.concatenate([np.zeros(3), np.eye(3).ravel()])
+        else:
+            sel[0] = 1
+            c, R, _ = obj_prims_world(o)[pi]
+            col[P[f"e{i}_pose"]] = np.concatenate([c, R.ravel(order="F")])
+            col[P[f"e{i}_loc"]] = [0, 0, 0, 1, 0]
+        col[P[f"e{i}_sel"]] = sel
+        col[P[f"e{i}_half"]] = pr.half_extents()
+
     # ------------------------------------------------------------------ arrays
     def _initial_tilt(self, foot: str) -> np.ndarray:
         """Sole tilt rows (R[0,2], R[1,2]) of the fixed initial configuration.  Knot 0's x is fixed
@@ -764,6 +845,8 @@ class ProblemData:
                 rows(f"c{i} homotopy surrogate", k, 0 if (homotopy is True and on) else -INF, INF)
             for (a, b) in win.st.self_pairs:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
+            for i, (oid, _, _) in enumerate(self.env_pairs):  # hard in every stage: no surrogate
+                rows(f"e{i} carried object clearance", k, 0 if self._env_enabled(k, oid) else -INF, INF)
             rows("floor clearance", k, 0, INF)  # smooth, so on in every homotopy stage
             rows("hip roll coupling", k, 0 if k > 0 else -INF, INF)  # knot 0 is the measured start
             if win.st.interval_momentum:
@@ -830,6 +913,8 @@ class ProblemData:
                 self._object_params(k, oid, j, col, P)
             for i, (s, (oid, pi)) in enumerate(self.pairs):
                 self._pair_params(k, i, s, oid, pi, col, P, expo, penalty, homotopy, hard)
+            for i in range(len(self.env_pairs)):
+                self._env_params(k, i, col, P)
 
         # ---------------- warm start
         W0 = np.zeros((W.n, K + 1))

@@ -405,7 +405,8 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
         parts, converged, status, grips = [], True, "", {}
         for i, (t0, t1) in enumerate(segs):
             sp = segment_problem(prob, t0, t1, x_init, poses, grips)
-            sd = ProblemData(sp, model, moving=data.moving, pairs=data.pairs, stand=data.x_init)
+            sd = ProblemData(sp, model, moving=data.moving, pairs=data.pairs, stand=data.x_init,
+                             env_pairs=data.env_pairs)
             where = f"subtask {sp.phases[0].subtask_index} ({t0:.1f}-{t1:.1f} s)"
             res = _run_stages(run, sd, win, wd, threads, where + " ")
             parts.append((sd, res))
@@ -641,6 +642,10 @@ def _readable(name: str, data: ProblemData, win: Window) -> str:
     if m:
         s, (oid, pi) = data.pairs[int(m.group(1))]
         return f"{m.group(2)}: {data.model.spheres[s].name} vs {oid}[{pi}]"
+    m = re.match(r"^e(\d+) (.*)$", name)
+    if m:
+        oid, pt, (po, pi) = data.env_pairs[int(m.group(1))]
+        return f"{m.group(2)}: {oid} at ({pt[0]:+.2f}, {pt[1]:+.2f}, {pt[2]:+.2f}) vs {po}[{pi}]"
     m = re.match(r"^self (\d+) (\d+)$", name)
     if m:
         return f"self-collision {data.model.spheres[int(m.group(1))].name} vs {data.model.spheres[int(m.group(2))].name}"

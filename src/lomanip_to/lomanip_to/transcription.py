@@ -99,6 +99,9 @@ class Structure:
     interval_momentum: bool = False
     #: rows of the upper body's acceleration (Options.upper_body_acceleration_limit > 0)
     upper_body_acceleration: bool = False
+    #: number of carried-object clearance pairs (a point sphere on a moving object against another
+    #: object's primitive; discretize.ProblemData.env_pairs)
+    env_pairs: int = 0
 
     def key(self) -> str:
         return hashlib.sha1(repr(self).encode()).hexdigest()[:12]
@@ -170,6 +173,13 @@ def par_layout(st: Structure) -> Layout:
         P.add(f"c{i}_loc", 5)  # primitive in the moving object's frame: centre (3), cos, sin
         P.add(f"c{i}_half", 3)
         P.add(f"c{i}_w", 3)  # penalty weight, homotopy weight, surrogate exponent
+    for i in range(st.env_pairs):
+        P.add(f"e{i}_obj", st.n_obj)  # which moving object carries the point
+        P.add(f"e{i}_pt", 4)  # point sphere in that object's frame: centre (3), radius
+        P.add(f"e{i}_sel", st.n_obj + 1)
+        P.add(f"e{i}_pose", 12)
+        P.add(f"e{i}_loc", 5)
+        P.add(f"e{i}_half", 3)
     return P
 
 
@@ -491,6 +501,24 @@ class Window:
             add(f"c{i} homotopy surrogate", Fs - 1 + s)
             cost += pp["w_stage"] * wpen * ca.fmin(d, 0) ** 2
             cost += pp["w_stage"] * whom * (pp["w_slack"] * s ** 2 + ca.fmax(1 - Fs, 0) ** 2)
+        # ---- a carried object's point spheres vs the other objects' primitives: hard rows in every
+        # stage.  Without them S2's carry pulled the box off the table through its top edge (22 cm
+        # down in 0.2 s) and the wrists followed it into the table (docs/to.md, session 27)
+        for i in range(st.env_pairs):
+            osel, pt = pp[f"e{i}_obj"], pp[f"e{i}_pt"]
+            c = 0
+            for j in range(M):
+                pj, _, Rj = objs_a[j]
+                c = c + osel[j] * (pj + Rj @ pt[0:3])
+            sel, pose, loc = pp[f"e{i}_sel"], pp[f"e{i}_pose"], pp[f"e{i}_loc"]
+            Rw = sel[0] * ca.reshape(pose[3:12], 3, 3)
+            pw = sel[0] * pose[0:3]
+            Rloc = rot_z_cs(loc[3], loc[4])
+            for j in range(M):
+                pj, _, Rj = objs_a[j]
+                Rw = Rw + sel[j + 1] * (Rj @ Rloc)
+                pw = pw + sel[j + 1] * (pj + Rj @ loc[0:3])
+            add(f"e{i} carried object clearance", box_sphere_distance(Rw.T @ (c - pw), pp[f"e{i}_half"], pt[3]))
         # every collision sphere above the floor (z = 0): the sole rows only keep the sole point
         # up, so a toe-down swing foot put its sphere 10 mm into the floor (push_trolley, t = 0.2 s)
         add("floor clearance", ca.vertcat(*[spheres[s][2] - m.spheres[s].radius for s in range(len(m.spheres))]))
