@@ -29,7 +29,7 @@ def test_the_lifted_box_gets_rows_against_the_table_only_while_carried(g1):
     assert {(oid, po) for oid, _, (po, _) in data.env_pairs} == {("box", "table")}
     win, _ = solver.get_window(g1, data.structure)
     _, _, lbg, ubg, _, _ = data.fill(win, *solver.homotopy_stages(data.prob.options, data)[0])
-    rows = win.G["e0 carried object clearance"]
+    rows = win.G["e0 carried object collision"]
     for k in range(data.grid.K):
         free = data.obj_mode(k, "box") == "free"
         assert lbg[rows, k][0] == (0.0 if free else -np.inf)

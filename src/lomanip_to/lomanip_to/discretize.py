@@ -846,7 +846,7 @@ class ProblemData:
             for (a, b) in win.st.self_pairs:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
             for i, (oid, _, _) in enumerate(self.env_pairs):  # hard in every stage: no surrogate
-                rows(f"e{i} carried object clearance", k, 0 if self._env_enabled(k, oid) else -INF, INF)
+                rows(f"e{i} carried object collision", k, 0 if self._env_enabled(k, oid) else -INF, INF)
             rows("floor clearance", k, 0, INF)  # smooth, so on in every homotopy stage
             rows("hip roll coupling", k, 0 if k > 0 else -INF, INF)  # knot 0 is the measured start
             if win.st.interval_momentum:

@@ -518,7 +518,7 @@ class Window:
                 pj, _, Rj = objs_a[j]
                 Rw = Rw + sel[j + 1] * (Rj @ Rloc)
                 pw = pw + sel[j + 1] * (pj + Rj @ loc[0:3])
-            add(f"e{i} carried object clearance", box_sphere_distance(Rw.T @ (c - pw), pp[f"e{i}_half"], pt[3]))
+            add(f"e{i} carried object collision", box_sphere_distance(Rw.T @ (c - pw), pp[f"e{i}_half"], pt[3]))
         # every collision sphere above the floor (z = 0): the sole rows only keep the sole point
         # up, so a toe-down swing foot put its sphere 10 mm into the floor (push_trolley, t = 0.2 s)
         add("floor clearance", ca.vertcat(*[spheres[s][2] - m.spheres[s].radius for s in range(len(m.spheres))]))
