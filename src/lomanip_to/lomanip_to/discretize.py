@@ -26,6 +26,11 @@ LEG_OBJECT_CLEARANCE = 0.03
 #: m: radius of the point spheres that stand for a carried object in its clearance rows from the
 #: other objects (inset by it, so a sphere touches the object's face: the distance is smooth there)
 CARRIED_POINT_RADIUS = 0.01
+#: s over which a carried object's nominal comes in to Options.carry_reach (and back out)
+CARRY_REACH_BLEND = 0.8
+#: m the object's nominal rises by meanwhile, so that, drawn in over the edge of the support it
+#: left, it stays clear of it
+CARRY_RAISE = 0.05
 
 #: the carried-object weights (w_carry_*) are off here; S1's task file asks for w_carry_pose 500
 #: (TrajectoryOptions.weights): with the fixed carry nominal S1's carry reached its iteration cap
@@ -234,6 +239,19 @@ class ProblemData:
                 traj[k1 + 1:] = cur
             self.obj_nom[oid] = traj
 
+    def _pulled_in(self, rel: np.ndarray, tk: float, t_off: float, t_down: float) -> np.ndarray:
+        """A carried object's pose relative to the base with its horizontal reach brought towards
+        ``Options.carry_reach`` and raised by CARRY_RAISE, blended in after lift-off (t_off) and
+        out before set-down (t_down)."""
+        reach = float(np.hypot(rel[0], rel[1]))
+        target = min(reach, self.prob.options.carry_reach)
+        w = smoothstep((tk - t_off) / CARRY_REACH_BLEND) * smoothstep((t_down - tk) / CARRY_REACH_BLEND)
+        out = rel.copy()
+        if reach > 1e-9:
+            out[0:2] *= (1.0 - w) + w * target / reach
+        out[2] += w * CARRY_RAISE
+        return out
+
     def _moving_intervals(self, oid: str) -> list:
         """(first knot, first knot after) of each stretch in which ``oid`` moves (it is in the
         phases' objects); the knot after is where it comes to rest (K if it never does)."""
@@ -290,9 +308,12 @@ class ProblemData:
                     # with the base to the last knot instead of going back to where it started
                     rel1, k_end = rel0.copy(), k1 + 1
                 rel1[5] = rel0[5] + math.remainder(rel1[5] - rel0[5], 2 * math.pi)
+                free_t = [t[k] for k in free]
                 for k in range(k0 + 1, k_end):
                     s = (t[k] - t[k0]) / (t[k1] - t[k0])
                     rel = (1 - s) * rel0 + s * rel1
+                    if self.prob.options.carry_reach > 0 and self.obj_mode(k, oid) == "free":
+                        rel = self._pulled_in(rel, t[k], free_t[0], free_t[-1])
                     pose = _from_base(X[k], rel)
                     self.carry_rel.setdefault(oid, np.full((self.grid.K, 6), np.nan))[k] = rel
                     if self.obj_mode(k, oid) in ("supported", "rolling"):

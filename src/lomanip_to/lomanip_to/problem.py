@@ -334,6 +334,12 @@ class Options:
     #: every knot (clearance 0) and between knots it passed up to 15 cm through them (docs/to.md,
     #: session 19)
     carried_object_clearance: float = 0.0
+    #: m: the nominal of an object carried free comes to at most this horizontal distance from the
+    #: base (over ``CARRY_REACH_BLEND`` s after it leaves its support and back before it is set down;
+    #: 0 = off: it keeps its pose relative to the base from the grasp).  Why: S2's box nominal stayed
+    #: at the pick's reach, 0.5 m ahead, so the warm start leaned the base 13 cm towards the table
+    #: to hold it upright (docs/to.md, session 27)
+    carry_reach: float = 0.0
     weights: dict = field(default_factory=dict)
     #: extra ipopt options (expert use; e.g. {"mu_strategy": "monotone"})
     ipopt: dict = field(default_factory=dict)
@@ -467,7 +473,7 @@ def validate_problem(prob: Problem, model=None) -> None:
         raise ProblemError(INVALID_REQUEST, f"options.inertial_torque_groups: unknown group(s) {', '.join(map(repr, bad))} "
                                             f"(known: {', '.join(TORQUE_GROUPS)})", "options")
     for name, hi, rule in (("interval_momentum_tolerance", np.inf, ">= 0"), ("upper_body_acceleration_limit", np.inf, ">= 0"),
-                           ("upper_body_speed_limit", np.inf, ">= 0"),
+                           ("upper_body_speed_limit", np.inf, ">= 0"), ("carry_reach", 1.0, "in [0, 1] m"),
                            ("carried_object_clearance", 0.2, "in [0, 0.2] m"), ("dt_lift", 1.0, "in [0, 1] s")):
         val = getattr(prob.options, name)
         if not (np.isfinite(val) and 0 <= val <= hi):
