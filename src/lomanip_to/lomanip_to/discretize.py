@@ -659,20 +659,7 @@ class ProblemData:
         osel[self.midx[oid]] = 1.0
         col[P[f"e{i}_obj"]] = osel
         col[P[f"e{i}_pt"]] = pt
-        o = self.prob.object(po)
-        pr = o.primitives[pi]
-        sel = np.zeros(len(self.moving) + 1)
-        if po in self.midx:
-            sel[self.midx[po] + 1] = 1
-            col[P[f"e{i}_loc"]] = [*pr.position, math.cos(pr.yaw), math.sin(pr.yaw)]
-            col[P[f"e{i}_pose"]] = np.concatenate([np.zeros(3), np.eye(3).ravel()])
-        else:
-            sel[0] = 1
-            c, R, _ = obj_prims_world(o)[pi]
-            col[P[f"e{i}_pose"]] = np.concatenate([c, R.ravel(order="F")])
-            col[P[f"e{i}_loc"]] = [0, 0, 0, 1, 0]
-        col[P[f"e{i}_sel"]] = sel
-        col[P[f"e{i}_half"]] = pr.half_extents()
+        col[P[f"e{i}_half"]] = self._primitive_params(f"e{i}", po, pi, col, P)
 
     # ------------------------------------------------------------------ arrays
     def _initial_tilt(self, foot: str) -> np.ndarray:
@@ -1243,26 +1230,32 @@ class ProblemData:
             return self.w["w_hom"] * (self.w["w_slack"] + 1.0)
         return 0.0
 
-    def _pair_params(self, k, i, s, oid, pi, col, P, expo, penalty, homotopy, hard=True):
+    def _primitive_params(self, tag: str, oid: str, pi: int, col, P) -> np.ndarray:
+        """Fill a collision pair's primitive parameters (``<tag>_sel``, ``_pose``, ``_loc``: see
+        transcription._primitive_frame); returns the primitive's half extents."""
         o = self.prob.object(oid)
         pr = o.primitives[pi]
         sel = np.zeros(len(self.moving) + 1)
         if oid in self.midx:
             sel[self.midx[oid] + 1] = 1
-            col[P[f"c{i}_loc"]] = [*pr.position, math.cos(pr.yaw), math.sin(pr.yaw)]
-            col[P[f"c{i}_pose"]] = np.concatenate([np.zeros(3), np.eye(3).ravel()])
+            col[P[f"{tag}_loc"]] = [*pr.position, math.cos(pr.yaw), math.sin(pr.yaw)]
+            col[P[f"{tag}_pose"]] = np.concatenate([np.zeros(3), np.eye(3).ravel()])
         else:
             sel[0] = 1
             c, R, _ = obj_prims_world(o)[pi]
-            col[P[f"c{i}_pose"]] = np.concatenate([c, R.ravel(order="F")])
-            col[P[f"c{i}_loc"]] = [0, 0, 0, 1, 0]
-        col[P[f"c{i}_sel"]] = sel
+            col[P[f"{tag}_pose"]] = np.concatenate([c, R.ravel(order="F")])
+            col[P[f"{tag}_loc"]] = [0, 0, 0, 1, 0]
+        col[P[f"{tag}_sel"]] = sel
+        return pr.half_extents()
+
+    def _pair_params(self, k, i, s, oid, pi, col, P, expo, penalty, homotopy, hard=True):
+        half = self._primitive_params(f"c{i}", oid, pi, col, P)
         # a stage without the hard rows (the homotopy guide) keeps the clearance they will ask for
         # in its surrogate and penalty: the primitive grows by it.  Without it S1's subtask 0 guide
         # ended with the shins 1.6 cm into the box (the grasp keyframe's posture has them 8 cm in),
         # 4.6 cm short of the final stage's 3 cm leg clearance; that stage then started cold, its
         # barrier stuck at 0.8 for 300 iterations, and it stopped "locally infeasible"
-        col[P[f"c{i}_half"]] = pr.half_extents() + (0.0 if hard else self._clearance(s, k, oid))
+        col[P[f"c{i}_half"]] = half + (0.0 if hard else self._clearance(s, k, oid))
         on = self._pair_enabled(k, s, oid)
         col[P[f"c{i}_w"]] = [self.w["w_pen"] if (penalty and on) else 0.0,
                              self._homotopy_weight(homotopy) if on else 0.0, expo]

@@ -191,6 +191,19 @@ def _soft_norm(v, eps=1e-4):
     return ca.sqrt(ca.sumsqr(v) + eps * eps) - eps
 
 
+def _primitive_frame(pp, tag: str, objs):
+    """World frame (R, p) of a collision pair's primitive from its parameters ``<tag>_sel`` (static
+    world primitive, or one riding on moving object j), ``<tag>_pose`` and ``<tag>_loc``."""
+    sel, pose, loc = pp[f"{tag}_sel"], pp[f"{tag}_pose"], pp[f"{tag}_loc"]
+    Rw = sel[0] * ca.reshape(pose[3:12], 3, 3)
+    pw = sel[0] * pose[0:3]
+    Rloc = rot_z_cs(loc[3], loc[4])
+    for j, (pj, _, Rj) in enumerate(objs):
+        Rw = Rw + sel[j + 1] * (Rj @ Rloc)
+        pw = pw + sel[j + 1] * (pj + Rj @ loc[0:3])
+    return Rw, pw
+
+
 def box_sphere_distance(c_local, half, radius):
     """Signed distance sphere (centre in the box frame) to an axis-aligned box; smooth-ish."""
     q = ca.fabs(c_local) - half
@@ -481,16 +494,7 @@ class Window:
         for i, s_idx in enumerate(st.obj_pairs):
             sph = m.spheres[s_idx]
             c = spheres[s_idx]
-            sel = pp[f"c{i}_sel"]
-            pose = pp[f"c{i}_pose"]
-            loc = pp[f"c{i}_loc"]
-            Rw = sel[0] * ca.reshape(pose[3:12], 3, 3)
-            pw = sel[0] * pose[0:3]
-            Rloc = rot_z_cs(loc[3], loc[4])
-            for j in range(M):
-                pj, _, Rj = objs_a[j]
-                Rw = Rw + sel[j + 1] * (Rj @ Rloc)
-                pw = pw + sel[j + 1] * (pj + Rj @ loc[0:3])
+            Rw, pw = _primitive_frame(pp, f"c{i}", objs_a)
             cl = Rw.T @ (c - pw)
             half = pp[f"c{i}_half"]
             wpen, whom, expo = pp[f"c{i}_w"][0], pp[f"c{i}_w"][1], pp[f"c{i}_w"][2]
@@ -510,14 +514,7 @@ class Window:
             for j in range(M):
                 pj, _, Rj = objs_a[j]
                 c = c + osel[j] * (pj + Rj @ pt[0:3])
-            sel, pose, loc = pp[f"e{i}_sel"], pp[f"e{i}_pose"], pp[f"e{i}_loc"]
-            Rw = sel[0] * ca.reshape(pose[3:12], 3, 3)
-            pw = sel[0] * pose[0:3]
-            Rloc = rot_z_cs(loc[3], loc[4])
-            for j in range(M):
-                pj, _, Rj = objs_a[j]
-                Rw = Rw + sel[j + 1] * (Rj @ Rloc)
-                pw = pw + sel[j + 1] * (pj + Rj @ loc[0:3])
+            Rw, pw = _primitive_frame(pp, f"e{i}", objs_a)
             add(f"e{i} carried object collision", box_sphere_distance(Rw.T @ (c - pw), pp[f"e{i}_half"], pt[3]))
         # every collision sphere above the floor (z = 0): the sole rows only keep the sole point
         # up, so a toe-down swing foot put its sphere 10 mm into the floor (push_trolley, t = 0.2 s)
