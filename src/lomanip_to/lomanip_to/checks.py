@@ -54,7 +54,7 @@ def carried_object_depths(data, res, k: int) -> list:
     """Depths (m) at knot ``k`` of the faces of each object carried free (off every support) in
     the other objects' primitives: a box through a table is not physics, whoever holds it.  Faces
     are sampled 7 x 7, so an edge of the other object between samples is missed by at most a few mm."""
-    from .discretize import obj_prims_world
+    from .discretize import box_distances, obj_prims_world
 
     out = []
     for oid, poses in res.object_pose_knots.items():
@@ -70,11 +70,10 @@ def carried_object_depths(data, res, k: int) -> list:
                 continue
             op = res.object_pose_knots.get(other.id)
             prims = obj_prims_world(other, op[k][:3], op[k][3:]) if op is not None else obj_prims_world(other)
-            for (c, R, he) in prims:
-                q = np.abs((pts - c) @ R) - he
-                inside = q.max(axis=1)
-                if inside.min() < 0:
-                    out.append(float(-inside.min()))
+            for prim in prims:
+                d = float(box_distances(pts, *prim, 0.0).min())
+                if d < 0:
+                    out.append(-d)
     return out
 
 

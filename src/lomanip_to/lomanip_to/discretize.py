@@ -89,6 +89,12 @@ def obj_prims_world(o: SceneObject, p=None, rpy=None):
     return out
 
 
+def box_distances(points: np.ndarray, centre, R, half, radius) -> np.ndarray:
+    """Signed distances of spheres (centres (n, 3), radius or radii) to a posed box."""
+    q = np.abs((points - centre) @ R) - half
+    return np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0) - radius
+
+
 def carried_points(o: SceneObject, r: float = CARRIED_POINT_RADIUS) -> np.ndarray:
     """(n, 4) point spheres (centre in the object frame, radius) standing for an object in its
     clearance rows: a 3 x 3 grid on the bottom and on the top face of each primitive's box, inset by
@@ -605,11 +611,8 @@ class ProblemData:
                 r = m.spheres[s].radius
                 dmin = INF
                 for pose in poses:
-                    c, R, he = obj_prims_world(o, pose[:3], pose[3:])[pi]
-                    loc = (cs[:, s, :] - c) @ R
-                    q = np.abs(loc) - he
-                    d = np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0) - r
-                    dmin = min(dmin, float(d.min()))
+                    prim = obj_prims_world(o, pose[:3], pose[3:])[pi]
+                    dmin = min(dmin, float(box_distances(cs[:, s, :], *prim, r).min()))
                 if dmin < thr:
                     pairs.append((s, (oid, pi)))
         self.pairs = pairs
@@ -631,29 +634,27 @@ class ProblemData:
                 continue
             o = self.prob.object(oid)
             pts = carried_points(o)
-            knots = free[:: max(1, len(free) // 25)] + [free[-1]]
-            for other in self.prob.objects:
-                if other.id == oid:
-                    continue
+            others = [other for other in self.prob.objects if other.id != oid]
+            dmin = {(other.id, pi): np.full(len(pts), INF) for other in others for pi in range(len(other.primitives))}
+            for k in free[:: max(1, len(free) // 25)] + [free[-1]]:
+                pose = self.obj_nom[oid][k]
+                cw = pose[:3] + pts[:, :3] @ rpy_to_rot(pose[3:]).T
+                for other in others:
+                    opose = self.obj_nom.get(other.id)
+                    prims = (obj_prims_world(other, opose[k][:3], opose[k][3:]) if opose is not None
+                             else obj_prims_world(other))
+                    for pi, prim in enumerate(prims):
+                        dmin[other.id, pi] = np.minimum(dmin[other.id, pi], box_distances(cw, *prim, pts[:, 3]))
+            for other in others:
                 for pi in range(len(other.primitives)):
-                    dmin = np.full(len(pts), INF)
-                    for k in knots:
-                        pose = self.obj_nom[oid][k]
-                        cw = pose[:3] + pts[:, :3] @ rpy_to_rot(pose[3:]).T
-                        opose = self.obj_nom[other.id][k] if other.id in self.obj_nom else None
-                        c, R, he = (obj_prims_world(other, opose[:3], opose[3:]) if opose is not None
-                                    else obj_prims_world(other))[pi]
-                        q = np.abs((cw - c) @ R) - he
-                        d = np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0) - pts[:, 3]
-                        dmin = np.minimum(dmin, d)
                     out.extend((oid, tuple(float(v) for v in pts[n]), (other.id, pi))
-                               for n in np.flatnonzero(dmin < thr))
+                               for n in np.flatnonzero(dmin[other.id, pi] < thr))
         return out
 
     def _env_enabled(self, k: int, oid: str) -> bool:
         return self.obj_mode(k, oid) == "free"
 
-    def _env_params(self, k: int, i: int, col, P) -> None:
+    def _env_params(self, i: int, col, P) -> None:
         oid, pt, (po, pi) = self.env_pairs[i]
         osel = np.zeros(len(self.moving))
         osel[self.midx[oid]] = 1.0
@@ -922,7 +923,7 @@ class ProblemData:
             for i, (s, (oid, pi)) in enumerate(self.pairs):
                 self._pair_params(k, i, s, oid, pi, col, P, expo, penalty, homotopy, hard)
             for i in range(len(self.env_pairs)):
-                self._env_params(k, i, col, P)
+                self._env_params(i, col, P)
 
         # ---------------- warm start
         W0 = np.zeros((W.n, K + 1))
