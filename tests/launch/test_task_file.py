@@ -79,6 +79,15 @@ def test_task_options_reach_the_trajectory_options_message():
         assert isinstance(getattr(msg, key), kind), key
 
 
+def test_every_trajectory_options_field_can_be_set_from_a_task_file():
+    """A new TrajectoryOptions field is usable from a task file too (S2's task file once could not
+    ask for carry_reach)."""
+    from lomanip_msgs.msg import TrajectoryOptions
+    from lomanip_launch.task_file import _OPTION_FIELDS
+
+    assert set(TrajectoryOptions.get_fields_and_field_types()) == set(_OPTION_FIELDS)
+
+
 def test_solver_options_become_solver_option_entries():
     """YAML's yes/no are booleans; ipopt wants the words. Numbers travel as their text."""
     from lomanip_launch.plan_client import goal_from_task

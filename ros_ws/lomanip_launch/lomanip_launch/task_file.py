@@ -29,7 +29,8 @@ _OPTION_FIELDS = {"use_keyframe_base_cost": bool, "use_keyframe_foot_cost": bool
                   "single_support_com_lateral": float, "waist_yaw_range": float,
                   "interval_momentum_tolerance": float, "upper_body_acceleration_limit": float,
                   "upper_body_speed_limit": float,
-                  "carried_object_clearance": float, "dt_lift": float,
+                  "carried_object_clearance": float, "dt_lift": float, "carry_reach": float,
+                  "placement_tolerance": float,
                   "solver_options": dict, "weights": dict}
 
 

@@ -452,6 +452,31 @@ def placement_error(data, res) -> tuple:
     return worst
 
 
+def off_support(data, res) -> tuple:
+    """Worst (m, object id, t) distance by which a resting object's centre lies outside the top it
+    rests on (<= 0: over it), at the knots where the TO has it set down on another object.
+
+    Why: a box set down with its centre past the top's edge falls off; S2's plans once set the box
+    down at deck height with its footprint 1 cm over the trolley's edge (docs/to.md, session 28)."""
+    from .discretize import obj_prims_world
+
+    worst = (-np.inf, "", 0.0)
+    for oid, poses in res.object_pose_knots.items():
+        if oid not in data.midx:
+            continue
+        for k in range(min(len(poses), data.grid.K)):
+            sup = data.support_under(k, oid)
+            if sup is None:
+                continue
+            s = data.prob.object(sup[0])
+            sp = res.object_pose_knots.get(sup[0])
+            c, R, half = obj_prims_world(s, *((sp[k][:3], sp[k][3:]) if sp is not None else ()))[sup[1]]
+            out = float(np.max(np.abs((R.T @ (np.asarray(poses[k][:3], float) - c))[:2]) - half[:2]))
+            if out > worst[0]:
+                worst = (out, oid, float(res.t_knots[k]))
+    return worst
+
+
 def run_checks(model: G1Model, data, res) -> dict:
     """All checks as {name: {"value", "where", "ok"}}."""
     out = {}
@@ -482,6 +507,9 @@ def run_checks(model: G1Model, data, res) -> dict:
     dp, dyaw, oid, tg = placement_error(data, res)
     out["placement_goals"] = {"value": dp, "yaw_error": dyaw, "where": f"{oid} t={tg:.2f}" if oid else "",
                               "ok": dp <= TOL["placement"] and dyaw <= TOL["placement_yaw"]}
+    v, oid, tk = off_support(data, res)
+    if oid:
+        out["set_down_over_support"] = {"value": v, "where": f"{oid} t={tk:.2f}", "ok": v <= 0.0}
     for c in out.values():  # plain Python numbers (the checks go into JSON and messages)
         c["ok"] = bool(c["ok"])
         for key, val in c.items():

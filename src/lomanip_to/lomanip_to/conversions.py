@@ -175,6 +175,7 @@ def options_from_msg(o: TrajectoryOptions, base: P.Options | None = None) -> P.O
         upper_body_speed_limit=max(float(o.upper_body_speed_limit), 0.0),
         carried_object_clearance=max(float(o.carried_object_clearance), 0.0),
         carry_reach=max(float(o.carry_reach), 0.0),
+        placement_tolerance=max(float(o.placement_tolerance), 0.0),
         dt_lift=max(float(o.dt_lift), 0.0),
         ipopt={**(base.ipopt if base is not None else {}),
                **{str(kv.name): P.parse_option_value(str(kv.value)) for kv in o.solver_options}},
@@ -379,6 +380,7 @@ def request_from_problem(prob: P.Problem, joint_names):
         upper_body_speed_limit=float(o.upper_body_speed_limit),
         carried_object_clearance=float(o.carried_object_clearance),
         carry_reach=float(o.carry_reach),
+        placement_tolerance=float(o.placement_tolerance),
         dt_lift=float(o.dt_lift),
         solver_options=[SolverOption(name=str(k), value=str(v)) for k, v in (o.ipopt or {}).items()],
         weights=[CostWeight(name=str(k), value=float(v)) for k, v in (o.weights or {}).items()])

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .model import FEET, HANDS, LIMBS, SOLE_CENTER, SOLE_FORCE_POINTS, G1Model, rot_to_rpy, rpy_to_rot
-from .problem import FLOOR, STANCE, WALKING, Problem, SceneObject
+from .problem import FLOOR, INVALID_REQUEST, STANCE, WALKING, Problem, ProblemError, SceneObject
 from .route import footprint_of, point_along, shortest_route, smoothstep, walking_heading
 from .transcription import UPPER_BODY_XD, G, Structure, Window, grip_axes
 
@@ -31,6 +31,11 @@ CARRY_REACH_BLEND = 0.8
 #: m the object's nominal rises by meanwhile, so that, drawn in over the edge of the support it
 #: left, it stays clear of it
 CARRY_RAISE = 0.05
+#: m: an object resting on another object's top keeps its centre this far inside the top's edges
+#: (at most a quarter of the top's size): the corners' patch forces then stand for a real overlap
+SUPPORT_EDGE_MARGIN = 0.04
+#: m: how far an object's nominal bottom may be from a top (or the floor) to be resting on it
+SUPPORT_MATCH = 0.02
 
 #: the carried-object weights (w_carry_*) are off here; S1's task file asks for w_carry_pose 500
 #: (TrajectoryOptions.weights): with the fixed carry nominal S1's carry reached its iteration cap
@@ -217,6 +222,9 @@ class ProblemData:
                                    self_pairs(model) if opt.self_collision else (),
                                    tuple(opt.inertial_torque_groups), opt.interval_momentum_tolerance > 0,
                                    opt.upper_body_acceleration_limit > 0, len(self.env_pairs))
+        for oid in self.moving:  # an object set down in mid-air is refused here, before any solve
+            for k in range(self.grid.K):
+                self.support_under(k, oid)
 
     # ------------------------------------------------------------------ object nominal poses
     def _object_timeline(self):
@@ -226,6 +234,8 @@ class ProblemData:
         self.obj_nom = {}
         self.carry_rel = {}  # object -> (K, 6) its nominal pose relative to the base while held (nan: not)
         self.support_poses = {}  # see use_solved_support_poses
+        self._support_cache = {}  # (k, object) -> support_under
+        self._set_down_height = {}  # (k, object) -> its height on that top (support_under)
         goals = {g.object_id: g for g in prob.placement_goals}
         for oid in self.moving:
             o = prob.object(oid)
@@ -419,6 +429,69 @@ class ProblemData:
     def rest_height(self, oid: str, support: str) -> float:
         """World height of ``oid``'s origin when it rests on ``support``."""
         return self._support_top(support) - self.prob.object(oid).bottom_z()
+
+    def support_under(self, k: int, oid: str):
+        """(object id, primitive index) of the top ``oid`` rests on at knot ``k``, or None (on the
+        floor, or not resting).  Resting: supported or rolling on a named object, or the first
+        knot it is fixed after a motion (set down: the top under its nominal pose then)."""
+        key = (k, oid)
+        if key not in self._support_cache:
+            self._support_cache[key] = self._find_support(k, oid)
+        return self._support_cache[key]
+
+    def _find_support(self, k: int, oid: str):
+        mode = self.obj_mode(k, oid)
+        prev = self.obj_mode(k - 1, oid) if k > 0 else "fixed"
+        ph = self.prob.phases[self.grid.phase[k]]
+        named = None
+        if mode in ("supported", "rolling"):
+            named = ph.objects[oid].support
+            if named == FLOOR:
+                return None
+        elif not (mode == "fixed" and prev != "fixed"):
+            return None
+        o = self.prob.object(oid)
+        p = self.obj_nom[oid][k]
+        bottom = p[2] + o.bottom_z() if named is None else self._support_top(named)
+        if named is None and bottom <= SUPPORT_MATCH:
+            return None  # set down on the floor: unbounded
+        best = None
+        for s in self.prob.objects:
+            if s.id == oid or (named is not None and s.id != named):
+                continue
+            sp = self.obj_nom[s.id][k] if s.id in self.obj_nom else None
+            prims = obj_prims_world(s, *((sp[:3], sp[3:]) if sp is not None else ()))
+            for pi, (c, R, half) in enumerate(prims):
+                if abs(c[2] + half[2] - bottom) > SUPPORT_MATCH or abs(R[2, 2] - 1) > 1e-6:
+                    continue
+                out = np.max(np.abs((R.T @ (p[:3] - c))[:2]) - half[:2])
+                if best is None or out < best[0]:
+                    best = (out, s.id, pi, c[2] + half[2])
+        if best is None or best[0] > SUPPORT_MATCH:
+            raise ProblemError(INVALID_REQUEST, f"'{oid}' is set down at t={self.grid.t[k]:.2f} s with its bottom "
+                               f"{bottom:.2f} m up and no object's top under it", "phases")
+        self._set_down_height[(k, oid)] = best[3] - o.bottom_z()
+        return best[1], best[2]
+
+    def _support_bounds(self, k: int, oid: str) -> np.ndarray:
+        """Half extents (x, y) of the support top less SUPPORT_EDGE_MARGIN; inf where unbounded."""
+        sup = self.support_under(k, oid)
+        if sup is None:
+            return np.full(2, INF)
+        half = self.prob.object(sup[0]).primitives[sup[1]].half_extents()[:2]
+        return half - np.minimum(SUPPORT_EDGE_MARGIN, 0.25 * half)
+
+    def _placement_tolerance(self, k: int, oid: str) -> float:
+        """Options.placement_tolerance at the knot of each of ``oid``'s placement goals (inf
+        elsewhere, or when the option is 0: the goal is then a cost only)."""
+        tol = self.prob.options.placement_tolerance
+        if tol <= 0:
+            return INF
+        for g in self.prob.placement_goals:
+            tg = self.prob.duration if g.time is None else g.time
+            if g.object_id == oid and k == int(np.argmin(np.abs(self.grid.t - tg))):
+                return tol
+        return INF
 
     def _touched(self, k: int, oid: str) -> bool:
         """Whether a limb or another object loads ``oid`` at knot ``k``."""
@@ -848,6 +921,10 @@ class ProblemData:
                     rows(f"o{j} rolling: resistance opposes motion", k, -INF, 0)
                 if mode != "attached":
                     rows(f"o{j} attachment", k, -INF, INF)
+                hs = self._support_bounds(k, oid)
+                rows(f"o{j} over its support", k, -hs, hs)
+                tol = self._placement_tolerance(k, oid)
+                rows(f"o{j} at its placement goal", k, -tol, tol)
             for i, (s, (oid, pi)) in enumerate(self.pairs):
                 on = self._pair_enabled(k, s, oid)
                 rows(f"c{i} collision", k, self._clearance(s, k, oid) if (hard and on) else -INF, INF)
@@ -1153,8 +1230,8 @@ class ProblemData:
         mo = ph.objects.get(oid)
         if mode in ("supported", "rolling"):
             col[P[f"o{j}_zrest"]] = self.rest_height(oid, mo.support)
-        else:
-            col[P[f"o{j}_zrest"]] = self.obj_nom[oid][k][2]
+        else:  # set down on a top: on it, not at the nominal's height (SUPPORT_MATCH off)
+            col[P[f"o{j}_zrest"]] = self._set_down_height.get((k, oid), self.obj_nom[oid][k][2])
         if mode == "attached":
             sel = np.zeros(len(self.moving))
             sel[self.midx[mo.attached_to]] = 1
@@ -1174,6 +1251,9 @@ class ProblemData:
                 col[P[f"o{j}_offset"]] = rel[k][1:3]
             else:  # not on a blended carry (no keyframe warm start): the guess's relative yaw
                 col[P[f"o{j}_yaw_rel"]] = math.remainder(self.obj_nom[oid][k][5] - self.x_guess[k][5], 2 * math.pi)
+        sup = self.support_under(k, oid)
+        if sup is not None:
+            self._primitive_params(f"o{j}_sup", *sup, col, P)
         for g in self.prob.placement_goals:
             if g.object_id != oid:
                 continue

@@ -340,6 +340,11 @@ class Options:
     #: at the pick's reach, 0.5 m ahead, so the warm start leaned the base 13 cm towards the table
     #: to hold it upright (docs/to.md, session 27)
     carry_reach: float = 0.0
+    #: m: an object set down at a placement goal's time lies within this distance (in x and in y)
+    #: of the goal: hard rows (0 = off: the goal is a cost only, weight ``PlacementGoal.weight``).
+    #: Why: with the cost alone S2's stalled carry set the box down 31 cm short of the deck's goal
+    #: (docs/to.md, session 27)
+    placement_tolerance: float = 0.0
     weights: dict = field(default_factory=dict)
     #: extra ipopt options (expert use; e.g. {"mu_strategy": "monotone"})
     ipopt: dict = field(default_factory=dict)
@@ -474,6 +479,7 @@ def validate_problem(prob: Problem, model=None) -> None:
                                             f"(known: {', '.join(TORQUE_GROUPS)})", "options")
     for name, hi, rule in (("interval_momentum_tolerance", np.inf, ">= 0"), ("upper_body_acceleration_limit", np.inf, ">= 0"),
                            ("upper_body_speed_limit", np.inf, ">= 0"), ("carry_reach", 1.0, "in [0, 1] m"),
+                           ("placement_tolerance", 1.0, "in [0, 1] m"),
                            ("carried_object_clearance", 0.2, "in [0, 0.2] m"), ("dt_lift", 1.0, "in [0, 1] s")):
         val = getattr(prob.options, name)
         if not (np.isfinite(val) and 0 <= val <= hi):

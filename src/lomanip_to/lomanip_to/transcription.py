@@ -167,6 +167,10 @@ def par_layout(st: Structure) -> Layout:
         P.add(f"o{j}_yaw_rel", 1)
         P.add(f"o{j}_w_offset", 1)
         P.add(f"o{j}_offset", 2)  # lateral and vertical offset from the base (base-yaw frame)
+        # the top primitive it rests on (a static one, or one riding on a moving object)
+        P.add(f"o{j}_sup_sel", st.n_obj + 1)
+        P.add(f"o{j}_sup_pose", 12)
+        P.add(f"o{j}_sup_loc", 5)
     for i in range(len(st.obj_pairs)):
         P.add(f"c{i}_sel", st.n_obj + 1)
         P.add(f"c{i}_pose", 12)  # static world primitive: centre (3) + R (9, column-major)
@@ -466,6 +470,13 @@ class Window:
                 p_att = p_att + att[i] * (pi_ + Ri @ off[0:3])
                 rpy_att = rpy_att + att[i] * (rpyi + ca.vertcat(0, 0, off[3]))
             add(f"o{j} attachment", ca.vertcat(pa - p_att, rpya - rpy_att))
+            # resting on another object's top, its centre stays over that top (bounds: the top's
+            # half extents less a margin).  Without it S2's plan set the box down at deck height
+            # with its footprint 1 cm over the trolley's edge, held by nothing (docs/to.md, session 28)
+            Rs, ps = _primitive_frame(pp, f"o{j}_sup", objs_a)
+            add(f"o{j} over its support", (Rs.T @ (pa - ps))[0:2])
+            # ... and, where Options.placement_tolerance asks, it is set down at its goal
+            add(f"o{j} at its placement goal", pa[0:2] - pp[f"o{j}_goal"][0:2])
             # object costs: placement goal and twist regulariser
             goal = pp[f"o{j}_goal"]
             cost += pp[f"o{j}_w_goal"] * (ca.sumsqr(pa - goal[0:3]) + 0.3 * (rpya[2] - goal[3]) ** 2)
