@@ -104,7 +104,8 @@ def carried_points(o: SceneObject, r: float = CARRIED_POINT_RADIUS) -> np.ndarra
     """(n, 4) point spheres (centre in the object frame, radius) standing for an object in its
     clearance rows: a 3 x 3 grid on the bottom and on the top face of each primitive's box, inset by
     ``r`` so each sphere touches the faces.  A simplification: between the grid points an edge of
-    another object can still cut into a face by up to a few mm (the check samples more densely)."""
+    another object can still cut into a face (1 cm at a table's edge under a box tilted 0.22 rad,
+    docs/to.md session 28; the check samples more densely)."""
     out = []
     for pr in o.primitives:
         he = np.maximum(pr.half_extents() - r, 0.0)
