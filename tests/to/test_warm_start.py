@@ -90,7 +90,7 @@ def test_warm_start_keeps_the_body_further_out_of_fixed_furniture(g1):
     """S2 with the trolley 45 cm from the table (the old layout): placing the box between them,
     the nominal puts the pelvis ~8-11 cm into the table; the warm start's IK pushes the body out
     as far as the footholds allow."""
-    data = ProblemData(load_problem("s2_trolley", {"trolley_position": [0.90, -1.10]}, model=g1), g1)
+    data = ProblemData(load_problem("s2_trolley", {"trolley_position": [0.90, -1.10], "side_gap": 0.50}, model=g1), g1)
     nominal = _worst_body_penetration(g1, data, data._keyframe_nominal())
     guess = _worst_body_penetration(g1, data, data.x_guess)
     assert nominal > 0.05
