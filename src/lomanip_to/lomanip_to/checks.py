@@ -458,7 +458,7 @@ def off_support(data, res) -> tuple:
 
     Why: a box set down with its centre past the top's edge falls off; S2's plans once set the box
     down at deck height with its footprint 1 cm over the trolley's edge (docs/to.md, session 28)."""
-    from .discretize import obj_prims_world
+    from .discretize import obj_prims_world, outside_top
 
     worst = (-np.inf, "", 0.0)
     for oid, poses in res.object_pose_knots.items():
@@ -470,8 +470,7 @@ def off_support(data, res) -> tuple:
                 continue
             s = data.prob.object(sup[0])
             sp = res.object_pose_knots.get(sup[0])
-            c, R, half = obj_prims_world(s, *((sp[k][:3], sp[k][3:]) if sp is not None else ()))[sup[1]]
-            out = float(np.max(np.abs((R.T @ (np.asarray(poses[k][:3], float) - c))[:2]) - half[:2]))
+            out = outside_top(poses[k], *obj_prims_world(s, *((sp[k][:3], sp[k][3:]) if sp is not None else ()))[sup[1]])
             if out > worst[0]:
                 worst = (out, oid, float(res.t_knots[k]))
     return worst

@@ -100,6 +100,11 @@ def box_distances(points: np.ndarray, centre, R, half, radius) -> np.ndarray:
     return np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0) - radius
 
 
+def outside_top(p, centre, R, half) -> float:
+    """How far (m) point ``p`` lies outside a posed box's top rectangle, in x or y (<= 0: over it)."""
+    return float(np.max(np.abs((R.T @ (np.asarray(p, float)[:3] - centre))[:2]) - half[:2]))
+
+
 def carried_points(o: SceneObject, r: float = CARRIED_POINT_RADIUS) -> np.ndarray:
     """(n, 4) point spheres (centre in the object frame, radius) standing for an object in its
     clearance rows: a 3 x 3 grid on the bottom and on the top face of each primitive's box, inset by
@@ -235,8 +240,7 @@ class ProblemData:
         self.obj_nom = {}
         self.carry_rel = {}  # object -> (K, 6) its nominal pose relative to the base while held (nan: not)
         self.support_poses = {}  # see use_solved_support_poses
-        self._support_cache = {}  # (k, object) -> support_under
-        self._set_down_height = {}  # (k, object) -> its height on that top (support_under)
+        self._support_cache = {}  # (k, object) -> (top's object id, primitive, rest height) or None
         goals = {g.object_id: g for g in prob.placement_goals}
         for oid in self.moving:
             o = prob.object(oid)
@@ -438,7 +442,8 @@ class ProblemData:
         key = (k, oid)
         if key not in self._support_cache:
             self._support_cache[key] = self._find_support(k, oid)
-        return self._support_cache[key]
+        hit = self._support_cache[key]
+        return None if hit is None else hit[:2]
 
     def _find_support(self, k: int, oid: str):
         mode = self.obj_mode(k, oid)
@@ -465,14 +470,13 @@ class ProblemData:
             for pi, (c, R, half) in enumerate(prims):
                 if abs(c[2] + half[2] - bottom) > SUPPORT_MATCH or abs(R[2, 2] - 1) > 1e-6:
                     continue
-                out = np.max(np.abs((R.T @ (p[:3] - c))[:2]) - half[:2])
+                out = outside_top(p, c, R, half)
                 if best is None or out < best[0]:
                     best = (out, s.id, pi, c[2] + half[2])
         if best is None or best[0] > SUPPORT_MATCH:
             raise ProblemError(INVALID_REQUEST, f"'{oid}' is set down at t={self.grid.t[k]:.2f} s with its bottom "
                                f"{bottom:.2f} m up and no object's top under it", "phases")
-        self._set_down_height[(k, oid)] = best[3] - o.bottom_z()
-        return best[1], best[2]
+        return best[1], best[2], best[3] - o.bottom_z()
 
     def _support_bounds(self, k: int, oid: str) -> np.ndarray:
         """Half extents (x, y) of the support top less SUPPORT_EDGE_MARGIN; inf where unbounded."""
@@ -488,11 +492,11 @@ class ProblemData:
         tol = self.prob.options.placement_tolerance
         if tol <= 0:
             return INF
-        for g in self.prob.placement_goals:
-            tg = self.prob.duration if g.time is None else g.time
-            if g.object_id == oid and k == int(np.argmin(np.abs(self.grid.t - tg))):
-                return tol
-        return INF
+        return tol if any(g.object_id == oid and k == self.goal_knot(g) for g in self.prob.placement_goals) else INF
+
+    def goal_knot(self, g) -> int:
+        """Knot of a placement goal's time (the end when it has none)."""
+        return int(np.argmin(np.abs(self.grid.t - (self.prob.duration if g.time is None else g.time))))
 
     def _touched(self, k: int, oid: str) -> bool:
         """Whether a limb or another object loads ``oid`` at knot ``k``."""
@@ -1232,7 +1236,8 @@ class ProblemData:
         if mode in ("supported", "rolling"):
             col[P[f"o{j}_zrest"]] = self.rest_height(oid, mo.support)
         else:  # set down on a top: on it, not at the nominal's height (SUPPORT_MATCH off)
-            col[P[f"o{j}_zrest"]] = self._set_down_height.get((k, oid), self.obj_nom[oid][k][2])
+            hit = self._support_cache.get((k, oid))
+            col[P[f"o{j}_zrest"]] = self.obj_nom[oid][k][2] if hit is None else hit[2]
         if mode == "attached":
             sel = np.zeros(len(self.moving))
             sel[self.midx[mo.attached_to]] = 1
@@ -1258,9 +1263,7 @@ class ProblemData:
         for g in self.prob.placement_goals:
             if g.object_id != oid:
                 continue
-            tg = self.prob.duration if g.time is None else g.time
-            kg = int(np.argmin(np.abs(self.grid.t - tg)))
-            if k == kg or k == self.grid.K - 1:
+            if k == self.goal_knot(g) or k == self.grid.K - 1:
                 col[P[f"o{j}_w_goal"]] = g.weight
                 col[P[f"o{j}_goal"]] = [*g.position, g.yaw]
 
