@@ -266,6 +266,25 @@ def test_lifted_object_gets_the_force_its_planned_motion_needs():
     assert np.allclose(net[0], net[1], atol=1e-6)  # the inconsistent plan's 40 N downward push is not fed forward
 
 
+def test_grasp_squeeze_scale_scales_the_squeeze_and_keeps_the_net_force():
+    """``grasp_squeeze_scale`` multiplies the plan's squeeze on a lifted object (each hand's force
+    minus the hands' mean) and leaves the net force on the object alone."""
+    sim, tr = simulation("case_lift_box")
+    P = tr.objects["box"][0]
+    lifted = [k for k in range(1, tr.n - 2) if P[k, 2] > P[0, 2] + 0.02 and P[k + 1, 2] > P[0, 2] + 0.02
+              and {"left_hand", "right_hand"} <= set(tr.phase_at(tr.t[k]).contacts)]
+    assert lifted
+    plain = WholeBodyController(sim.world, tr)
+    scaled = WholeBodyController(sim.world, tr, WbcGains(grasp_squeeze_scale=2.0))
+    for k in lifted[:: max(1, len(lifted) // 5)]:
+        c = tr.phase_at(tr.t[k]).contacts
+        f1 = [plain.hand_feedforward(l, c, k, 0.0) for l in ("left_hand", "right_hand")]
+        f2 = [scaled.hand_feedforward(l, c, k, 0.0) for l in ("left_hand", "right_hand")]
+        assert np.allclose(f2[0] + f2[1], f1[0] + f1[1], atol=1e-6)
+        assert np.allclose(f2[0] - f2[1], 2.0 * (f1[0] - f1[1]), atol=1e-6)
+        assert np.linalg.norm(f1[0] - f1[1]) > 1.0  # the plan squeezes: the test can tell
+
+
 def test_hand_contact_released_when_its_object_has_left_the_hand():
     """A planned hand contact whose object has gone is released until the plan's own release
     (``hand_release``): no hand force in the QP, the arm back on the plan's posture. The push of

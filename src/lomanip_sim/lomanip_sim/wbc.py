@@ -266,6 +266,12 @@ class WbcGains:
     # 3.1 s) and the robot fell at 4.24 s; with this, the box is carried to 3.56 s (fell at 5.58 s)
     hand_force_from_object_motion: bool = True
     object_lift_height: float = 0.01  # m
+    # the plan's squeeze on a lifted object (each hand's force minus the hands' mean) is fed forward
+    # times this; the net force on the object is unchanged. The TO plans each hand at 0.57 of the
+    # friction cone's edge, and under MuJoCo's soft contacts S2's box crept down between the hands
+    # while the robot walked with it, until they lost it at 4.9 s; with 2 it stayed in the hands
+    # (docs/execution.md, session 29). Opt-in: 1 feeds the plan's squeeze forward as it is
+    grasp_squeeze_scale: float = 1.0
     # on an object pushed along the floor (one the hands follow), the hand's reference along the
     # contact normal is an admittance: it moves out of the object while the measured normal force
     # exceeds the desired one and into it while it is below (rate in m/s per N, depth bounded).
@@ -959,8 +965,8 @@ class WholeBodyController:
 
     def hand_feedforward(self, limb: str, contacts: dict, i: int, s: float) -> np.ndarray:
         """Force on the robot at hand ``limb`` (world, N) fed forward at grid time i + s of an engaged grasp:
-        the plan's, or on a lifted object (``hand_force_from_object_motion``) the plan's squeeze plus
-        this hand's share of what the object's planned motion needs."""
+        the plan's, or on a lifted object (``hand_force_from_object_motion``) the plan's squeeze (times
+        ``grasp_squeeze_scale``) plus this hand's share of what the object's planned motion needs."""
         tr = self.traj
 
         def lerp(a):
@@ -976,7 +982,8 @@ class WholeBodyController:
             return f
         mates = [l for l in HANDS if contacts.get(l) is not None and contacts[l].object_id == oid and l in tr.forces]
         mean = sum(lerp(tr.forces[l]) for l in mates) / len(mates)
-        return f - mean - lerp(need) / len(mates)  # the object receives -f (Newton's third law)
+        squeeze = self.g.grasp_squeeze_scale * (f - mean)
+        return squeeze - lerp(need) / len(mates)  # the object receives -f (Newton's third law)
 
     # ---------------------------------------------------------------------------- control
     def reset(self, data: mujoco.MjData) -> None:
