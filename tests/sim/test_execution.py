@@ -89,6 +89,25 @@ def test_message_round_trip_matches_direct_conversion():
         conversions.trajectory_from_msg(msg)
 
 
+def test_free_objects_survive_the_message():
+    """The schedule's object motions reach the controller: which objects each phase has free
+    (carried by the contacts alone); a schedule with no object motions at all says nothing (None)."""
+    from builtin_interfaces.msg import Time
+    from lomanip_to import conversions as to_conv
+
+    from lomanip_sim import conversions
+
+    res, prob = solved("case_lift_box")
+    msg = to_conv.trajectory_msg(res, prob.phases, "case_lift_box", Time())
+    a, b = conversions.trajectory_from_msg(msg), trajectory("case_lift_box")
+    assert [p.free_objects for p in a.phases] == [p.free_objects for p in b.phases]
+    assert any(p.free_objects == frozenset({"box"}) for p in b.phases)
+    assert any(p.free_objects == frozenset() for p in b.phases)
+    for ph in msg.contact_schedule.phases:
+        ph.object_motions.clear()
+    assert all(p.free_objects is None for p in conversions.trajectory_from_msg(msg).phases)
+
+
 def test_execution_error_wraps_unexpected():
     e = execution_error(RuntimeError("boom"))
     assert e.code == EXECUTION_FAILED and "boom" in e.message

@@ -239,7 +239,7 @@ def test_lifted_object_gets_the_force_its_planned_motion_needs():
     lifted = [k for k in range(1, tr.n - 2) if P[k, 2] > P[0, 2] + 0.02 and P[k + 1, 2] > P[0, 2] + 0.02
               and {"left_hand", "right_hand"} <= set(tr.phase_at(tr.t[k]).contacts)]
     resting = [k for k in range(1, tr.n - 2) if P[k + 1, 2] < P[0, 2] + 1e-3
-               and "left_hand" in tr.phase_at(tr.t[k]).contacts]
+               and "left_hand" in tr.phase_at(tr.t[k]).contacts and "box" not in tr.phase_at(tr.t[k]).free_objects]
     assert lifted and resting
     # the plan's hands push the box down by 20 N each more than they should (an inconsistent plan)
     pushed = dataclasses.replace(tr, forces={l: f + (np.array([0.0, 0.0, 20.0]) if "hand" in l else 0.0)
@@ -264,6 +264,30 @@ def test_lifted_object_gets_the_force_its_planned_motion_needs():
         c = plan.phase_at(plan.t[k]).contacts
         assert np.allclose(wbc.hand_feedforward("left_hand", c, k, 0.0), plan.forces["left_hand"][k])
     assert np.allclose(net[0], net[1], atol=1e-6)  # the inconsistent plan's 40 N downward push is not fed forward
+
+
+def test_object_carried_below_its_start_gets_its_needed_force_in_its_free_phases():
+    """Where the schedule says an object is free (carried by the contacts alone), the hands feed
+    forward m (a + g) of its planned motion whatever its height: S2's box is carried below the table
+    top it was picked from. A schedule that does not say falls back to the height rule."""
+    import dataclasses
+
+    sim, tr = simulation("case_lift_box")
+    P, Q = tr.objects["box"]
+    free = np.array([tr.phase_at(float(t)).free_objects is not None and "box" in tr.phase_at(float(t)).free_objects
+                     for t in tr.t])
+    assert free.any() and not free.all()
+    lowered = P.copy()
+    lowered[:, 2] = 2.0 * P[0, 2] - P[:, 2]  # the same motion, downwards: below the start once lifted
+    carried_down = dataclasses.replace(tr, objects={**tr.objects, "box": (lowered, Q)})
+    need = WholeBodyController(sim.world, carried_down)._object_net["box"]
+    assert np.all(np.isfinite(need[free])) and np.all(np.isnan(need[~free]))
+    mass = sim.world.objects["box"].mass
+    k = int(np.flatnonzero(free)[len(np.flatnonzero(free)) // 2])
+    a = np.gradient(np.gradient(lowered, tr.t, axis=0), tr.t, axis=0)
+    assert np.allclose(need[k], mass * (a[k] + [0.0, 0.0, 9.81]))
+    unsaid = dataclasses.replace(carried_down, phases=[dataclasses.replace(ph, free_objects=None) for ph in tr.phases])
+    assert np.all(np.isnan(WholeBodyController(sim.world, unsaid)._object_net["box"][1:]))
 
 
 def test_grasp_squeeze_scale_scales_the_squeeze_and_keeps_the_net_force():

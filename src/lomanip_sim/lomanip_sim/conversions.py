@@ -174,6 +174,7 @@ def trajectory_from_msg(msg):
         lin = np.array([[v.linear.x, v.linear.y, v.linear.z] for v in (p.velocities[0] for p in bt.points)])
         ang = np.array([[v.angular.x, v.angular.y, v.angular.z] for v in (p.velocities[0] for p in bt.points)])
     phases = []
+    says_motions = any(ph.object_motions for ph in msg.contact_schedule.phases)  # none at all: not said
     for k, ph in enumerate(msg.contact_schedule.phases):
         if len(ph.contact_object_ids) != len(ph.limbs_in_contact) or (
                 ph.contact_poses and len(ph.contact_poses) != len(ph.limbs_in_contact)):
@@ -182,7 +183,9 @@ def trajectory_from_msg(msg):
         for j, (limb, oid) in enumerate(zip(ph.limbs_in_contact, ph.contact_object_ids)):
             pos, normal = _normal_from_pose(ph.contact_poses[j]) if ph.contact_poses else (None, np.array([0.0, 0.0, 1.0]))
             contacts[limb] = LimbContact(oid, pos, normal)
-        phases.append(Phase(_duration_s(ph.start), _duration_s(ph.end), contacts, walking=ph.phase_type == 1))
+        free = frozenset(mo.object_id for mo in ph.object_motions if mo.mode == "free") if says_motions else None
+        phases.append(Phase(_duration_s(ph.start), _duration_s(ph.end), contacts, walking=ph.phase_type == 1,
+                            free_objects=free))
     forces, torques = {}, {}
     if msg.contact_wrenches:
         if len(msg.contact_wrenches) != n:

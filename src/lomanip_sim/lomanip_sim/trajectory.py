@@ -61,6 +61,9 @@ class Phase:
     end: float
     contacts: dict[str, LimbContact]
     walking: bool = False
+    #: objects the plan has carried by the robot's contacts alone in this phase (ObjectMotion "free");
+    #: None: the schedule does not say (then the controller judges from the object's planned height)
+    free_objects: frozenset[str] | None = None
 
 
 @dataclass
@@ -262,7 +265,10 @@ def phases_from_to(phases) -> list[Phase]:
         for limb, c in ph.contacts.items():
             pos = None if c.position is None else np.asarray(c.position, float)
             contacts[limb] = LimbContact(c.object_id, pos, np.asarray(c.normal, float))
-        out.append(Phase(float(ph.start), float(ph.end), contacts, walking=(str(ph.phase_type) == "walking")))
+        motions = getattr(ph, "objects", None)
+        free = None if motions is None else frozenset(o for o, mo in motions.items() if str(mo.mode) == "free")
+        out.append(Phase(float(ph.start), float(ph.end), contacts, walking=(str(ph.phase_type) == "walking"),
+                         free_objects=free))
     return out
 
 

@@ -546,9 +546,13 @@ class WholeBodyController:
 
     def _object_net_forces(self) -> dict:
         """object -> (N,3) force the grasp must give it for its planned motion, m (a + g) (dense plan,
-        second differences), NaN where the plan has it on its support (within ``object_lift_height``
-        of its initial height: there the support carries part of it)."""
+        second differences), NaN where a support carries part of it: outside the schedule's phases
+        that have it free (carried by the contacts alone), or, where the schedule does not say,
+        within ``object_lift_height`` of its initial height. Why the schedule first: S2's box is
+        carried below the table top it was picked from, and the height rule fed the plan's forces
+        forward through the whole carry (docs/execution.md, session 29)."""
         tr, out = self.traj, {}
+        said = [ph for ph in tr.phases if ph.free_objects is not None]
         for oid, (P, _Q) in tr.objects.items():
             so = self.world.objects.get(oid)
             if so is None or not so.movable or so.mass <= 0:
@@ -556,7 +560,11 @@ class WholeBodyController:
             P = np.asarray(P, float)
             a = np.gradient(np.gradient(P, tr.t, axis=0), tr.t, axis=0)
             need = so.mass * (a - self.model.opt.gravity)  # the sim's own gravity
-            need[P[:, 2] < P[0, 2] + self.g.object_lift_height] = np.nan
+            if said and len(said) == len(tr.phases):
+                free = np.array([oid in (tr.phase_at(float(t)).free_objects or ()) for t in tr.t])
+                need[~free] = np.nan
+            else:
+                need[P[:, 2] < P[0, 2] + self.g.object_lift_height] = np.nan
             out[oid] = need
         return out
 

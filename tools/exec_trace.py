@@ -1,0 +1,129 @@
+#!/usr/bin/env python3
+"""Trace of one execution under physics: what the robot, its hands and the carried object do against the plan.
+
+Why: a run that falls says where (metrics.json) but not why. This steps the same execution as
+tools/bench_exec.py and prints, every --every seconds of trajectory time between --start and
+--stop: each carried object's position error against its plan; per hand its tracking error, its
+position in the object's frame and the measured contact force; the CoM and pelvis errors; each
+foot's measured force and, for a loaded foot, its centre of pressure in the foot frame (the sole
+spans the contact spheres, x -0.05..0.12 m, y -0.03..0.03 m; a centre of pressure on that edge means
+the foot is about to roll). docs/execution.md (session 29) reads S2's carry with it.
+
+    .venv/bin/python tools/exec_trace.py runs/bench_to/s2_trolley_mass2.5_yaw0_all.npz --start 4 --stop 6.5
+    .venv/bin/python tools/exec_trace.py <npz> --gains '{"grasp_squeeze_scale": 2.0}'
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+for _p in ("tools", "src/lomanip_sim", "src/lomanip_to"):
+    sys.path.insert(0, str(ROOT / _p))
+
+HANDS = ("left_hand", "right_hand")
+FEET = ("left_foot", "right_foot")
+
+
+def foot_cop(model, data, body: int) -> np.ndarray | None:
+    """Centre of pressure (x, y) of the contacts on ``body`` in its own frame, or None when unloaded."""
+    import mujoco
+
+    num, den, f6 = np.zeros(3), 0.0, np.zeros(6)
+    for i in range(int(data.ncon)):
+        c = data.contact[i]
+        if body in (model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]):
+            mujoco.mj_contactForce(model, data, i, f6)
+            num += f6[0] * c.pos
+            den += f6[0]
+    if den < 1.0:
+        return None
+    R = data.xmat[body].reshape(3, 3)
+    return (R.T @ (num / den - data.xpos[body]))[:2]
+
+
+def trace_line(ex, objects: list[str]) -> str:
+    """One line of the trace at the execution's current time."""
+    import mujoco
+
+    sim, tr, w = ex.sim, ex.traj, ex.wbc
+    m, d = sim.model, sim.data
+    t = ex.time
+    i, s = tr.index_at(min(t, tr.duration))
+
+    def lerp(a):
+        return a[i] + s * (a[i + 1] - a[i])
+
+    parts = [f"t={t:5.2f}"]
+    for oid in objects:
+        b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, sim.world.objects[oid].body_name)
+        R = d.xmat[b].reshape(3, 3)
+        p = d.xpos[b] + R @ w._com_offset(b)
+        parts.append(f"{oid} err {np.round(p - lerp(tr.objects[oid][0]), 3)}")
+        for h in HANDS:
+            ph = d.site_xpos[w.site_id[h]]
+            parts.append(f"{h[0]}h err {np.round(ph - lerp(w.refs.site_p[h]), 3)} in {oid} {np.round(R.T @ (ph - p), 3)}"
+                         f" f {np.linalg.norm(w.measured_forces[h]):4.0f}")
+    com, pel = d.subtree_com[w.pelvis], d.xpos[w.pelvis]
+    parts.append(f"com err {np.round(com - lerp(w.refs.com), 3)} pelvis err {np.round(pel - lerp(w.refs.base_p), 3)}")
+    phase = tr.phase_at(min(t, tr.duration))
+    for f in FEET:
+        planned = "stance" if phase is not None and f in phase.contacts else "swing"
+        cop = foot_cop(m, d, w.foot_body[f])
+        cop_s = f" cop {np.round(cop, 3)}" if cop is not None else ""
+        parts.append(f"{f[0]}f {planned} f {np.linalg.norm(w.measured_forces[f]):4.0f}{cop_s}")
+    return " | ".join(parts)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("npz", type=Path, help="a saved TO result (TOResult.save, tools/bench_to.py)")
+    ap.add_argument("--problem", help="its fixture (default: the longest config name its file name starts with)")
+    ap.add_argument("--start", type=float, default=0.0, help="s of trajectory time")
+    ap.add_argument("--stop", type=float, default=float("inf"))
+    ap.add_argument("--every", type=float, default=0.1, help="s between lines")
+    ap.add_argument("--gains", default="{}", help="WbcGains overrides as JSON")
+    args = ap.parse_args()
+
+    import bench_exec
+    from lomanip_sim.execution import Execution
+    from lomanip_sim.trajectory import from_to_result
+    from lomanip_sim.wbc import WbcGains
+    from lomanip_to import fixtures
+    from lomanip_to.result import TOResult
+
+    if not args.npz.is_file():
+        print(f"exec_trace: no such file: {args.npz}", file=sys.stderr)
+        return 2
+    try:
+        gains = WbcGains(**json.loads(args.gains))
+    except (TypeError, ValueError) as e:
+        print(f"exec_trace: bad --gains: {e}", file=sys.stderr)
+        return 2
+    problem = args.problem or bench_exec._problem_of(args.npz.stem)
+    prob = fixtures.load_problem(problem, {})
+    res = TOResult.load(args.npz)
+    if res.t is None:
+        res.densify()
+    traj = from_to_result(res, prob.phases)
+    sim, traj.scenario = bench_exec.plan_world(problem, {}, prob, traj.qpos(0))
+    ex = Execution(sim, traj, gains=gains)
+    movable = [o for o in traj.objects if o in sim.world.objects and sim.world.objects[o].movable]
+    ex.start()
+    steps = max(1, int(round(0.02 / sim.timestep)))
+    next_t = args.start
+    while not ex.done and ex.time <= args.stop:
+        sim.step(steps)
+        if ex.time >= next_t:
+            next_t += args.every
+            print(trace_line(ex, movable), flush=True)
+    print(f"fell: {ex.fell} at t={ex.time:.2f} s" if ex.fell else f"no fall up to t={ex.time:.2f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
