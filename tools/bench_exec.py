@@ -14,6 +14,7 @@ a video (MP4, or GIF without an MP4 encoder), PNG frames, tracking.png, forces.p
 
     .venv/bin/python tools/bench_exec.py                          # the three TO test cases (~2.5 min)
     .venv/bin/python tools/bench_exec.py --cases case_stand --problems s1_basket
+    .venv/bin/python tools/bench_exec.py --cases --gains '{"grasp_squeeze_scale": 2.0}'   # controller gains
 """
 from __future__ import annotations
 
@@ -70,7 +71,8 @@ def cases(args) -> list[tuple[str, str, dict, Path | None]]:
     return out
 
 
-def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_root: Path, video: bool) -> dict:
+def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_root: Path, video: bool,
+             gains=None) -> dict:
     from lomanip_sim.execution import Execution
     from lomanip_sim.media import save_run
     from lomanip_sim.trajectory import TrajectoryError, from_to_result
@@ -89,7 +91,7 @@ def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_
         traj = from_to_result(res, prob.phases)
         sim, scenario = plan_world(problem, overrides, prob, traj.qpos(0))
         traj.scenario = scenario
-        ex = Execution(sim, traj)
+        ex = Execution(sim, traj, gains=gains)
     except TrajectoryError as e:
         row.update(error=f"{e.code}: {e.message}")
         return row
@@ -106,7 +108,15 @@ def main() -> int:
     ap.add_argument("--bench-to", default="runs/bench_to", help="folder of saved TO results (*.npz)")
     ap.add_argument("--out", default="runs/bench_exec")
     ap.add_argument("--no-video", action="store_true")
+    ap.add_argument("--gains", default="{}", help='WbcGains overrides as JSON, e.g. \'{"grasp_squeeze_scale": 2.0}\'')
     args = ap.parse_args()
+    from lomanip_sim.wbc import WbcGains
+
+    try:
+        gains = WbcGains(**json.loads(args.gains))
+    except (TypeError, ValueError) as e:
+        print(f"bench_exec: bad --gains: {e}", file=sys.stderr)
+        return 2
     out_root = ROOT / args.out
     out_root.mkdir(parents=True, exist_ok=True)
     rows = []
@@ -114,7 +124,7 @@ def main() -> int:
            f"{'obj cm/tilt rad':>16}{'RTF':>6}{'QPfail':>7}")
     print(hdr)
     for label, problem, overrides, saved in cases(args):
-        row = run_case(label, problem, overrides, saved, out_root, not args.no_video)
+        row = run_case(label, problem, overrides, saved, out_root, not args.no_video, gains)
         rows.append(row)
         if "error" in row:
             print(f"{label:<28}{'yes' if row['to_converged'] else 'no':>5}  refused: {row['error']}")

@@ -3,8 +3,8 @@
 
 Why: a run that falls says where (metrics.json) but not why. This steps the same execution as
 tools/bench_exec.py and prints, every --every seconds of trajectory time between --start and
---stop: each carried object's position error against its plan; per hand its tracking error, its
-position in the object's frame and the measured contact force; the CoM and pelvis errors; each
+--stop: each movable object's position error against its plan; per hand its tracking error, the
+measured contact force and, while the plan has it on an object, its position in that object's frame; the CoM and pelvis errors; each
 foot's measured force and, for a loaded foot, its centre of pressure in the foot frame (the sole
 spans the contact spheres, x -0.05..0.12 m, y -0.03..0.03 m; a centre of pressure on that edge means
 the foot is about to roll). docs/execution.md (session 29) reads S2's carry with it.
@@ -59,18 +59,23 @@ def trace_line(ex, objects: list[str]) -> str:
         return a[i] + s * (a[i + 1] - a[i])
 
     parts = [f"t={t:5.2f}"]
+    frames = {}
     for oid in objects:
         b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, sim.world.objects[oid].body_name)
         R = d.xmat[b].reshape(3, 3)
-        p = d.xpos[b] + R @ w._com_offset(b)
-        parts.append(f"{oid} err {np.round(p - lerp(tr.objects[oid][0]), 3)}")
-        for h in HANDS:
-            ph = d.site_xpos[w.site_id[h]]
-            parts.append(f"{h[0]}h err {np.round(ph - lerp(w.refs.site_p[h]), 3)} in {oid} {np.round(R.T @ (ph - p), 3)}"
-                         f" f {np.linalg.norm(w.measured_forces[h]):4.0f}")
+        frames[oid] = (d.xpos[b] + R @ w._com_offset(b), R)
+        parts.append(f"{oid} err {np.round(frames[oid][0] - lerp(tr.objects[oid][0]), 3)}")
+    phase = tr.phase_at(min(t, tr.duration))
+    for h in HANDS:
+        ph = d.site_xpos[w.site_id[h]]
+        line = f"{h[0]}h err {np.round(ph - lerp(w.refs.site_p[h]), 3)} f {np.linalg.norm(w.measured_forces[h]):4.0f}"
+        c = phase.contacts.get(h) if phase is not None else None
+        if c is not None and c.object_id in frames:  # where the hand is on the object it holds in the plan
+            p, R = frames[c.object_id]
+            line += f" in {c.object_id} {np.round(R.T @ (ph - p), 3)}"
+        parts.append(line)
     com, pel = d.subtree_com[w.pelvis], d.xpos[w.pelvis]
     parts.append(f"com err {np.round(com - lerp(w.refs.com), 3)} pelvis err {np.round(pel - lerp(w.refs.base_p), 3)}")
-    phase = tr.phase_at(min(t, tr.duration))
     for f in FEET:
         planned = "stance" if phase is not None and f in phase.contacts else "swing"
         cop = foot_cop(m, d, w.foot_body[f])
