@@ -228,7 +228,7 @@ def test_grasp_normal_turns_with_the_object():
 
 def test_lifted_object_gets_the_force_its_planned_motion_needs():
     """On a lifted object the hands' fed-forward net force is m (a + g) of its planned motion, split
-    between the hands, with the plan's squeeze kept: S1's plan lifts its box off the floor with the
+    between the hands, with the plan's squeeze kept (times grasp_squeeze_scale): S1's plan lifts its box off the floor with the
     floor's force (the last support knot's force acts over the lift's first interval) while its
     hands push the box down, and fed forward as planned the box stayed on the floor."""
     import dataclasses
@@ -258,7 +258,7 @@ def test_lifted_object_gets_the_force_its_planned_motion_needs():
             need = mass * (a[k] + [0.0, 0.0, 9.81])
             assert np.allclose(-(fl + fr), need, atol=1e-6)  # the box receives what its motion needs
             squeeze = plan.forces["left_hand"][k] - plan.forces["right_hand"][k]
-            assert np.allclose(fl - fr, squeeze, atol=1e-6)
+            assert np.allclose(fl - fr, wbc.g.grasp_squeeze_scale * squeeze, atol=1e-6)
             assert np.allclose(old.hand_feedforward("left_hand", c, k, 0.0), plan.forces["left_hand"][k])
         k = resting[-1]  # on its support: the plan's force as it is
         c = plan.phase_at(plan.t[k]).contacts
@@ -298,7 +298,7 @@ def test_grasp_squeeze_scale_scales_the_squeeze_and_keeps_the_net_force():
     lifted = [k for k in range(1, tr.n - 2) if P[k, 2] > P[0, 2] + 0.02 and P[k + 1, 2] > P[0, 2] + 0.02
               and {"left_hand", "right_hand"} <= set(tr.phase_at(tr.t[k]).contacts)]
     assert lifted
-    plain = WholeBodyController(sim.world, tr)
+    plain = WholeBodyController(sim.world, tr, WbcGains(grasp_squeeze_scale=1.0))
     scaled = WholeBodyController(sim.world, tr, WbcGains(grasp_squeeze_scale=2.0))
     for k in lifted[:: max(1, len(lifted) // 5)]:
         c = tr.phase_at(tr.t[k]).contacts
