@@ -228,8 +228,8 @@ def test_grasp_normal_turns_with_the_object():
 
 def test_lifted_object_gets_the_force_its_planned_motion_needs():
     """On a lifted object the hands' fed-forward net force is m (a + g) of its planned motion, split
-    between the hands, with the plan's squeeze kept (times grasp_squeeze_scale): S1's plan lifts its box off the floor with the
-    floor's force (the last support knot's force acts over the lift's first interval) while its
+    between the hands, with the plan's squeeze kept (times grasp_squeeze_scale): S1's plan lifts its
+    box off the floor with the floor's force (the last support knot's force acts over the lift's first interval) while its
     hands push the box down, and fed forward as planned the box stayed on the floor."""
     import dataclasses
 
