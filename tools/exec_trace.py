@@ -31,19 +31,13 @@ FEET = ("left_foot", "right_foot")
 
 def foot_cop(model, data, body: int) -> np.ndarray | None:
     """Centre of pressure (x, y) of the contacts on ``body`` in its own frame, or None when unloaded."""
-    import mujoco
+    from lomanip_sim.contact_forces import centre_of_pressure
 
-    num, den, f6 = np.zeros(3), 0.0, np.zeros(6)
-    for i in range(int(data.ncon)):
-        c = data.contact[i]
-        if body in (model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]):
-            mujoco.mj_contactForce(model, data, i, f6)
-            num += f6[0] * c.pos
-            den += f6[0]
-    if den < 1.0:
+    found = centre_of_pressure(model, data, body)
+    if found is None:
         return None
     R = data.xmat[body].reshape(3, 3)
-    return (R.T @ (num / den - data.xpos[body]))[:2]
+    return (R.T @ (found[0] - data.xpos[body]))[:2]
 
 
 def trace_line(ex, objects: list[str]) -> str:

@@ -62,3 +62,24 @@ class LimbForceMeter:
             else:
                 out[l2] += f_world
         return out
+
+
+def centre_of_pressure(model: mujoco.MjModel, data: mujoco.MjData, body: int,
+                       min_force: float = 1.0) -> tuple[np.ndarray, float] | None:
+    """(world point (3,), summed normal force N) of the contacts on ``body``, or None below ``min_force``.
+
+    The normal-force-weighted mean of the contact points: the centre of pressure of a sole on a
+    plane (the G1's soles touch through four corner spheres). Why: a centre of pressure on the
+    sole's edge says the foot is about to roll, which the limb's net force does not show
+    (tools/exec_trace.py; docs/execution.md, session 29).
+    """
+    num, den, f6 = np.zeros(3), 0.0, np.zeros(6)
+    for i in range(int(data.ncon)):
+        c = data.contact[i]
+        if body in (model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]):
+            mujoco.mj_contactForce(model, data, i, f6)
+            num += f6[0] * c.pos
+            den += f6[0]
+    if den < min_force:
+        return None
+    return num / den, float(den)
