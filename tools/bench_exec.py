@@ -101,6 +101,16 @@ def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_
     return row
 
 
+def gains_from_json(text: str):
+    """WbcGains with the overrides of a JSON object (``--gains``); ValueError saying what is wrong."""
+    from lomanip_sim.wbc import WbcGains
+
+    try:
+        return WbcGains(**json.loads(text))
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"bad --gains: {e}") from None
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--cases", nargs="*", default=list(FIXTURES), help="TO fixtures to solve and execute")
@@ -110,12 +120,10 @@ def main() -> int:
     ap.add_argument("--no-video", action="store_true")
     ap.add_argument("--gains", default="{}", help='WbcGains overrides as JSON, e.g. \'{"grasp_squeeze_scale": 2.0}\'')
     args = ap.parse_args()
-    from lomanip_sim.wbc import WbcGains
-
     try:
-        gains = WbcGains(**json.loads(args.gains))
-    except (TypeError, ValueError) as e:
-        print(f"bench_exec: bad --gains: {e}", file=sys.stderr)
+        gains = gains_from_json(args.gains)
+    except ValueError as e:
+        print(f"bench_exec: {e}", file=sys.stderr)
         return 2
     out_root = ROOT / args.out
     out_root.mkdir(parents=True, exist_ok=True)

@@ -4,10 +4,11 @@
 Why: a run that falls says where (metrics.json) but not why. This steps the same execution as
 tools/bench_exec.py and prints, every --every seconds of trajectory time between --start and
 --stop: each movable object's position error against its plan; per hand its tracking error, the
-measured contact force and, while the plan has it on an object, its position in that object's frame; the CoM and pelvis errors; each
-foot's measured force and, for a loaded foot, its centre of pressure in the foot frame (the sole
-spans the contact spheres, x -0.05..0.12 m, y -0.03..0.03 m; a centre of pressure on that edge means
-the foot is about to roll). docs/execution.md (session 29) reads S2's carry with it.
+measured contact force and, while the plan has it on an object, its position in that object's
+frame; the CoM and pelvis errors; each foot's measured force and, for a loaded foot, its centre of
+pressure in the foot frame (the sole spans the contact spheres, x -0.05..0.12 m, y -0.03..0.03 m;
+a centre of pressure on that edge means the foot is about to roll). docs/execution.md (session 29)
+reads S2's carry with it.
 
     .venv/bin/python tools/exec_trace.py runs/bench_to/s2_trolley_mass2.5_yaw0_all.npz --start 4 --stop 6.5
     .venv/bin/python tools/exec_trace.py <npz> --gains '{"grasp_squeeze_scale": 2.0}'
@@ -15,7 +16,6 @@ the foot is about to roll). docs/execution.md (session 29) reads S2's carry with
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -24,10 +24,6 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 for _p in ("tools", "src/lomanip_sim", "src/lomanip_to"):
     sys.path.insert(0, str(ROOT / _p))
-
-HANDS = ("left_hand", "right_hand")
-FEET = ("left_foot", "right_foot")
-
 
 def foot_cop(model, data, body: int) -> np.ndarray | None:
     """Centre of pressure (x, y) of the contacts on ``body`` in its own frame, or None when unloaded."""
@@ -43,6 +39,8 @@ def foot_cop(model, data, body: int) -> np.ndarray | None:
 def trace_line(ex, objects: list[str]) -> str:
     """One line of the trace at the execution's current time."""
     import mujoco
+
+    from lomanip_sim.trajectory import FEET, HANDS
 
     sim, tr, w = ex.sim, ex.traj, ex.wbc
     m, d = sim.model, sim.data
@@ -91,7 +89,6 @@ def main() -> int:
     import bench_exec
     from lomanip_sim.execution import Execution
     from lomanip_sim.trajectory import from_to_result
-    from lomanip_sim.wbc import WbcGains
     from lomanip_to import fixtures
     from lomanip_to.result import TOResult
 
@@ -99,9 +96,9 @@ def main() -> int:
         print(f"exec_trace: no such file: {args.npz}", file=sys.stderr)
         return 2
     try:
-        gains = WbcGains(**json.loads(args.gains))
-    except (TypeError, ValueError) as e:
-        print(f"exec_trace: bad --gains: {e}", file=sys.stderr)
+        gains = bench_exec.gains_from_json(args.gains)
+    except ValueError as e:
+        print(f"exec_trace: {e}", file=sys.stderr)
         return 2
     problem = args.problem or bench_exec._problem_of(args.npz.stem)
     prob = fixtures.load_problem(problem, {})

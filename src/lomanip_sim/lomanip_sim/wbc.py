@@ -555,7 +555,8 @@ class WholeBodyController:
         carried below the table top it was picked from, and the height rule fed the plan's forces
         forward through the whole carry (docs/execution.md, session 29)."""
         tr, out = self.traj, {}
-        said = [ph for ph in tr.phases if ph.free_objects is not None]
+        said = bool(tr.phases) and all(ph.free_objects is not None for ph in tr.phases)
+        free_at = [tr.phase_at(float(t)).free_objects for t in tr.t] if said else None  # per grid point
         for oid, (P, _Q) in tr.objects.items():
             so = self.world.objects.get(oid)
             if so is None or not so.movable or so.mass <= 0:
@@ -563,9 +564,8 @@ class WholeBodyController:
             P = np.asarray(P, float)
             a = np.gradient(np.gradient(P, tr.t, axis=0), tr.t, axis=0)
             need = so.mass * (a - self.model.opt.gravity)  # the sim's own gravity
-            if said and len(said) == len(tr.phases):
-                free = np.array([oid in (tr.phase_at(float(t)).free_objects or ()) for t in tr.t])
-                need[~free] = np.nan
+            if free_at is not None:
+                need[np.array([oid not in f for f in free_at])] = np.nan
             else:
                 need[P[:, 2] < P[0, 2] + self.g.object_lift_height] = np.nan
             out[oid] = need
