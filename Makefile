@@ -47,6 +47,7 @@ bench-exec: setup
 
 bench-push: setup
 	$(PY) tools/bench_push.py --cases all
+	$(PY) tools/bench_push.py --cases all --perturb all
 
 clean:
 	rm -rf build runs .pytest_cache

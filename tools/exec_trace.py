@@ -12,6 +12,7 @@ reads S2's carry with it.
 
     .venv/bin/python tools/exec_trace.py runs/bench_to/s2_trolley_mass2.5_yaw0_all.npz --start 4 --stop 6.5
     .venv/bin/python tools/exec_trace.py <npz> --gains '{"grasp_squeeze_scale": 2.0}'
+    .venv/bin/python tools/exec_trace.py runs/bench_push/base --perturb closer   # a tools/bench_push.py case
 """
 from __future__ import annotations
 
@@ -65,6 +66,9 @@ def trace_line(ex, objects: list[str]) -> str:
         if c is not None and c.object_id in frames:  # where the hand is on the object it holds in the plan
             p, R = frames[c.object_id]
             line += f" in {c.object_id} {np.round(R.T @ (ph - p), 3)}"
+        if h in w._push_force:  # pushing a floor object: desired normal force, admittance shift along the normal
+            n, f_des = w._push_force[h]
+            line += f" fn {float(n @ w.measured_forces[h]):4.0f}/{f_des:3.0f} adm {100 * w._admittance[h][1]:4.1f}cm"
         parts.append(line)
     com, pel = d.subtree_com[w.pelvis], d.xpos[w.pelvis]
     parts.append(f"com err {np.round(com - lerp(w.refs.com), 3)} pelvis err {np.round(pel - lerp(w.refs.base_p), 3)}")
@@ -78,7 +82,10 @@ def trace_line(ex, objects: list[str]) -> str:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("npz", type=Path, help="a saved TO result (TOResult.save, tools/bench_to.py)")
+    ap.add_argument("npz", type=Path, help="a saved TO result (TOResult.save, tools/bench_to.py), or a "
+                    "tools/bench_push.py case folder (plan.npz + problem.pkl)")
+    ap.add_argument("--perturb", default="nominal", help="for a bench_push case: its world with this model error "
+                    "(bench_push.PERTURBATIONS)")
     ap.add_argument("--problem", help="its fixture (default: the longest config name its file name starts with)")
     ap.add_argument("--start", type=float, default=0.0, help="s of trajectory time")
     ap.add_argument("--stop", type=float, default=float("inf"))
@@ -92,21 +99,41 @@ def main() -> int:
     from lomanip_to import fixtures
     from lomanip_to.result import TOResult
 
-    if not args.npz.is_file():
-        print(f"exec_trace: no such file: {args.npz}", file=sys.stderr)
+    push_case = args.npz.is_dir()
+    if not (args.npz / "plan.npz" if push_case else args.npz).is_file():
+        print(f"exec_trace: no such file: {args.npz}{'/plan.npz' if push_case else ''}", file=sys.stderr)
         return 2
     try:
         gains = bench_exec.gains_from_json(args.gains)
     except ValueError as e:
         print(f"exec_trace: {e}", file=sys.stderr)
         return 2
-    problem = args.problem or bench_exec._problem_of(args.npz.stem)
-    prob = fixtures.load_problem(problem, {})
-    res = TOResult.load(args.npz)
-    if res.t is None:
+    if push_case:
+        import pickle
+
+        import bench_push
+        from lomanip_sim.scenario import load_scenario
+        from lomanip_sim.simulator import Simulation
+
+        if args.perturb not in bench_push.PERTURBATIONS:
+            print(f"exec_trace: --perturb must be one of {', '.join(bench_push.PERTURBATIONS)}", file=sys.stderr)
+            return 2
+        with open(args.npz / "problem.pkl", "rb") as f:
+            prob = pickle.load(f)
+        res = TOResult.load(args.npz / "plan.npz")
         res.densify()
-    traj = from_to_result(res, prob.phases)
-    sim, traj.scenario = bench_exec.plan_world(problem, {}, prob, traj.qpos(0))
+        task, overrides = bench_push.task_and_overrides(bench_push.CASES.get(args.npz.name))
+        overrides = bench_push.perturbed(overrides, bench_push.PERTURBATIONS[args.perturb])
+        traj = from_to_result(res, prob.phases, scenario=task["scenario"])
+        sim = Simulation(load_scenario(task["scenario"], overrides))
+    else:
+        problem = args.problem or bench_exec._problem_of(args.npz.stem)
+        prob = fixtures.load_problem(problem, {})
+        res = TOResult.load(args.npz)
+        if res.t is None:
+            res.densify()
+        traj = from_to_result(res, prob.phases)
+        sim, traj.scenario = bench_exec.plan_world(problem, {}, prob, traj.qpos(0))
     ex = Execution(sim, traj, gains=gains)
     movable = [o for o in traj.objects if o in sim.world.objects and sim.world.objects[o].movable]
     ex.start()

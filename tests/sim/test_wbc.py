@@ -428,6 +428,38 @@ def test_push_admittance_sets_the_hand_depth_from_the_measured_force():
     assert "left_hand" not in wbc2._push_force
 
 
+def test_push_damping_wants_less_force_while_the_object_runs_faster_than_its_plan():
+    """``push_object_damping``: the desired normal force on a pushed object drops by the damping times
+    the object's speed over its plan's along the push (a trolley with freer wheels than planned
+    rolls ahead; the hands push less instead of on), and is the same as without it at the plan's speed."""
+    import dataclasses
+
+    sim, tr = simulation("case_lift_box")
+    P, Q = tr.objects["box"]  # the box held where it stands: planned at rest on the floor
+    tr = dataclasses.replace(tr, objects={**tr.objects, "box": (np.repeat(P[:1], len(P), 0), np.repeat(Q[:1], len(Q), 0))})
+    wbc = WholeBodyController(sim.world, tr, WbcGains(hand_tangential_backoff=0.0, push_object_damping=60.0,
+                                                      push_min_force=0.0, push_max_extra=1e3))
+    t = next(0.5 * (ph.start + ph.end) for ph in tr.phases if "left_hand" in ph.contacts)
+    i, s = tr.index_at(t)
+    c = tr.phase_at(t).contacts["left_hand"]
+    mujoco.mj_forward(sim.model, sim.data)
+    wbc._on_actual_object(sim.data, "box", np.zeros(3), i, s)
+    n = wbc._contact_normals(c)[i if s < 0.5 else i + 1]
+    f_plan = tr.forces["left_hand"][i] + s * (tr.forces["left_hand"][i + 1] - tr.forces["left_hand"][i])
+    box = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, sim.world.objects["box"].body_name)
+    vadr = sim.model.jnt_dofadr[sim.model.body_jntadr[box]]
+
+    def desired(speed_ahead):
+        sim.data.qvel[vadr : vadr + 3] = -speed_ahead * n  # along the push: away from the hand
+        mujoco.mj_forward(sim.model, sim.data)
+        wbc._push_admittance(sim.data, "left_hand", c, t, i, s)
+        return wbc._push_force["left_hand"][1]
+
+    assert desired(0.0) == pytest.approx(float(n @ f_plan), abs=1e-6)
+    assert desired(0.1) == pytest.approx(float(n @ f_plan) - 6.0, abs=1e-6)
+    assert desired(-0.1) == pytest.approx(float(n @ f_plan) + 6.0, abs=1e-6)  # lagging: more
+
+
 def test_swing_foot_target_moves_with_the_capture_point():
     """``step_adjust_gain``: a body moving sideways off its plan in a single stance moves the swing
     foot's target the same way (faded in over the swing, bounded by ``step_adjust_max``)."""

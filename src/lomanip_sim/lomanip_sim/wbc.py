@@ -199,6 +199,13 @@ class WbcGains:
     # trolley's handle bar (up to 62 mm) to grasp it from behind and above
     hand_approach: bool = True
     hand_approach_margin: float = 0.01  # m, kept from the scene by the lifted approach
+    # s before the contact's start from which the hand box is checked. bench_push's base plan brings
+    # both free hands within 0-1 cm of the handle (reference boxes up to 7 mm inside) 1.0-1.3 s before
+    # their contact; with tracking errors the left hand catches the bar at 1.7 s and draws the trolley
+    # 4 cm back, and that plan fails in 5 of 7 perturbed worlds. 1.5 s (margin 2 cm) saves base
+    # (6 of 7) but makes near_right fall in all 7 (its lifted right hand lags 8-15 cm and strikes),
+    # 1.2 s the same: 38 and 37 of 56 cases against 41 (docs/execution.md, session 30). Kept at 0.8
+    hand_approach_window: float = 0.8
     # the lift is tilted towards up by this much (normal + k up, normalised) on faces that look up:
     # along the handle's normal (-0.8, 0, 0.6) the lift pulled the left hand back into the torso
     hand_approach_up: float = 1.0
@@ -289,6 +296,10 @@ class WbcGains:
     hand_admittance_out: float = 0.05  # m, most the reference backs out of the surface
     hand_admittance_in: float = 0.03  # m, most it goes further in
     push_object_gain: float = 200.0  # N/m
+    # N per m/s of the object's speed over its plan's along the push, taken off the desired force (0:
+    # off). 60 over bench_push's 8 plans x 7 model errors (--perturb all): 40 of 56 succeed against 41
+    # (less overshoot with freer wheels, base 0.33 -> 0.32 m; a fall more elsewhere): not the default
+    push_object_damping: float = 0.0
     push_min_force: float = 2.0  # N: a hand keeps touching an object that runs ahead
     push_max_extra: float = 40.0  # N over the plan's normal force
     # on a pushed object, a touching hand that is off its contact point along the surface (farther
@@ -437,6 +448,7 @@ class WholeBodyController:
         self._hand_stiff = {l: self._near_contact(l) for l in HANDS}
         self._object_net = self._object_net_forces() if self.g.hand_force_from_object_motion else {}
         self._pyramids: dict = {}
+        self._vel6 = np.zeros(6)
         self._admittance_keys: dict = {}  # id(contact) -> (contact, its key in _admittance)
         #: (QP layout, daqp sense bits of its active inequalities) of the last step: at 500 Hz the
         #: active set hardly changes, and starting from it halves daqp's time
@@ -511,7 +523,7 @@ class WholeBodyController:
                 probe = HandBoxProbe(m, self.hand_geom[limb], self.site_id[limb], static_geoms, movable)
                 for start, c in self._contact_starts(limb):
                     normals = self._lift_normals(self._contact_normals(c))
-                    lift = approach_lift(t, sp[limb], sR[limb], normals, start, probe, window=self.g.hand_offset_ramp,
+                    lift = approach_lift(t, sp[limb], sR[limb], normals, start, probe, window=self.g.hand_approach_window,
                                          margin=self.g.hand_approach_margin, spread=self.g.hand_approach_spread,
                                          taper=self.g.hand_approach_taper, post=self.g.hand_approach_post)  # fmt: skip
                     sp[limb] = sp[limb] + lift[:, None] * normals
@@ -607,6 +619,14 @@ class WholeBodyController:
         return (data.xpos[b] + R_act @ off, R_act, P[i] + s * (P[i + 1] - P[i]),
                 frames.quat_to_matrix(Q[i if s < 0.5 else i + 1]))
 
+    def _object_velocity_lead(self, data: mujoco.MjData, oid: str, i: int) -> np.ndarray:
+        """The object's actual CoM velocity minus its plan's over grid interval i (world, m/s)."""
+        b, off = self._object_body[oid]  # (set by _object_frames, called first)
+        mujoco.mj_objectVelocity(self.model, data, mujoco.mjtObj.mjOBJ_BODY, b, self._vel6, 0)
+        v_act = self._vel6[3:] + np.cross(self._vel6[:3], data.xmat[b].reshape(3, 3) @ off)
+        P, tr = self.traj.objects[oid][0], self.traj
+        return v_act - (P[i + 1] - P[i]) / (tr.t[i + 1] - tr.t[i])
+
     def _lifted_in_plan(self, oid: str) -> bool:
         """Whether the plan moves object ``oid`` up or down by more than 1 cm (a carried object)."""
         out = self._lifted.get(oid)
@@ -644,7 +664,10 @@ class WholeBodyController:
             st = self._admittance[limb] = [key, 0.0]
         n = self._contact_normals(c)[i if s < 0.5 else i + 1]
         f_plan_n = float(n @ (tr.forces[limb][i] + s * (tr.forces[limb][i + 1] - tr.forces[limb][i])))
-        f_des = float(np.clip(f_plan_n + g.push_object_gain * float(n @ lead), g.push_min_force,
+        fb = g.push_object_gain * float(n @ lead)
+        if g.push_object_damping > 0.0:
+            fb += g.push_object_damping * float(n @ self._object_velocity_lead(data, c.object_id, i))
+        f_des = float(np.clip(f_plan_n + fb, g.push_min_force,
                               max(f_plan_n, g.push_min_force) + g.push_max_extra))
         f_meas = float(n @ self.measured_forces[limb])
         st[1] = float(np.clip(st[1] + self.model.opt.timestep * g.hand_admittance_rate * (f_meas - f_des),
