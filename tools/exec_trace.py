@@ -137,6 +137,10 @@ def main() -> int:
     ex = Execution(sim, traj, gains=gains)
     movable = [o for o in traj.objects if o in sim.world.objects and sim.world.objects[o].movable]
     ex.start()
+    for d in ex.wbc.detours:  # the hand references the controller shifted before execution
+        how = (f"shifted {d.amplitude * 100:.0f} cm along {np.round(d.direction, 2)}, clearance {d.clearance * 100:.1f} cm"
+               if d.direction is not None else "no shift found, left as planned")
+        print(f"detour {d.limb} {d.t_start:.2f}-{d.t_end:.2f} s, {-d.depth * 100:.1f} cm in: {how}")
     steps = max(1, int(round(0.02 / sim.timestep)))
     next_t = args.start
     while not ex.done and ex.time <= args.stop:

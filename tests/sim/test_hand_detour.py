@@ -7,7 +7,7 @@ A small MuJoCo model (a fixed "table top" box, a free "box" object, a mocap "han
 import mujoco
 import numpy as np
 
-from lomanip_sim.hand_detour import HandBoxProbe, detour, movable_bodies, static_obstacle_geoms
+from lomanip_sim.hand_detour import HandBoxProbe, ObjectsAsObstacles, detour, movable_bodies, static_obstacle_geoms
 from mocap_hand import hand_ids, scene
 
 _OBJECTS = """
@@ -59,3 +59,28 @@ def test_clear_path_is_left_alone():
     rot = np.repeat(np.eye(3)[None], len(t), 0)
     shifted, found = detour("left_hand", t, pos, rot, np.zeros(len(t), bool), probe)
     assert found == [] and np.array_equal(shifted, pos)
+
+
+def test_path_through_a_movable_object_is_shifted_round_it_when_objects_count_as_obstacles():
+    """``ObjectsAsObstacles``: a free hand that sweeps through the free box (at its planned pose) well
+    before a contact is shifted round it (``WbcGains.hand_detour_movable``); the plain probe only
+    keeps the plan's own clearance from movable objects and leaves it as it is."""
+    m, hand, geoms, site, hg = _setup()
+    box = movable_bodies(m, hand)[0]
+    t = np.round(np.arange(0.0, 2.001, 0.01), 6)
+    still = (np.repeat([[0.75, 0.0, 0.825]], len(t), 0), np.repeat([[1.0, 0.0, 0.0, 0.0]], len(t), 0))
+    probe = HandBoxProbe(m, hg, site, geoms, {box: still})
+    # sideways through the box's near side (4.6 cm into it) over 0.4-1.0 s, contact from 1.8 s
+    u = np.clip((t - 0.4) / 0.6, 0.0, 1.0)
+    pos = np.stack([np.full_like(t, 0.58), -0.4 + 0.8 * u, np.full_like(t, 0.93)], axis=1)
+    rot = np.repeat(np.eye(3)[None], len(t), 0)
+    contact = t >= 1.8
+    before = np.array([probe.clearance(p, R, i)[1] for i, (p, R) in enumerate(zip(pos, rot))])
+    assert before.min() < -0.04
+    plain, found_plain = detour("left_hand", t, pos, rot, contact, probe)
+    assert found_plain == [] and np.array_equal(plain, pos)
+    shifted, found = detour("left_hand", t, pos, rot, contact, ObjectsAsObstacles(probe), margin=0.02, pre_contact=0.0)
+    after = np.array([probe.clearance(p, R, i)[1] for i, (p, R) in enumerate(zip(shifted, rot))])
+    assert len(found) == 1 and found[0].direction is not None
+    assert after.min() >= 0.02 - 1e-6
+    assert np.allclose(shifted[contact], pos[contact])

@@ -109,6 +109,18 @@ class HandBoxProbe:
         return static, self._min_dist([m[0] for m in self._mov])
 
 
+class ObjectsAsObstacles:
+    """A probe that counts the movable objects (at their planned poses) as obstacles too, for a
+    :func:`detour` of a free hand round an object it is not yet touching."""
+
+    def __init__(self, probe: HandBoxProbe):
+        self.probe, self.distmax = probe, probe.distmax
+
+    def clearance(self, p_site: np.ndarray, R_site: np.ndarray, i: int | None = None) -> tuple[float, float]:
+        static, movable = self.probe.clearance(p_site, R_site, i)
+        return min(static, movable), self.distmax
+
+
 def _quat_mat(q) -> np.ndarray:
     R = np.zeros(9)
     mujoco.mju_quat2Mat(R, np.asarray(q, float))
