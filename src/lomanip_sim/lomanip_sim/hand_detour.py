@@ -34,7 +34,7 @@ class Detour:
     """One shifted stretch of a hand reference."""
 
     limb: str
-    t_start: float  # s, first and last grid time inside a static geom (before the shift)
+    t_start: float  # s, first and last grid time inside an obstacle (before the shift)
     t_end: float
     depth: float  # m, deepest penetration of the original reference (negative clearance)
     direction: np.ndarray | None  # world unit vector; None: no shift found, reference left as planned

@@ -484,6 +484,14 @@ class WholeBodyController:
         self._angmom_prev: tuple[float, np.ndarray] | None = None  # (time, A_L) of the last step
 
     # ---------------------------------------------------------------------------- references
+    def _take_detour(self, limb: str, before: np.ndarray, shifted: np.ndarray, found: list[Detour]) -> np.ndarray:
+        """Record a :func:`detour` of ``limb``'s reference: the shifted samples are tracked by the arm alone."""
+        moved = np.any(np.abs(shifted - before) > 1e-9, axis=1)
+        self._detoured[limb] |= moved
+        self._arm_only[limb] |= moved
+        self.detours.extend(found)
+        return shifted
+
     def _precompute_refs(self) -> _Refs:
         tr, m, d = self.traj, self.model, self._scratch
         n = tr.n
@@ -527,23 +535,18 @@ class WholeBodyController:
             sp[limb] = sp[limb] + off
             if self.g.hand_approach and movable and self.hand_geom[limb] >= 0:
                 probe = HandBoxProbe(m, self.hand_geom[limb], self.site_id[limb], static_geoms, movable)
-                for start, c in self._contact_starts(limb):
+                starts = self._contact_starts(limb)
+                for start, c in starts:
                     normals = self._lift_normals(self._contact_normals(c))
                     lift = approach_lift(t, sp[limb], sR[limb], normals, start, probe, window=self.g.hand_approach_window,
                                          margin=self.g.hand_approach_margin, spread=self.g.hand_approach_spread,
                                          taper=self.g.hand_approach_taper, post=self.g.hand_approach_post)  # fmt: skip
                     sp[limb] = sp[limb] + lift[:, None] * normals
                     self.approach_lifts.append((limb, start, float(lift.max())))
-                starts = self._contact_starts(limb)
                 if self.g.hand_detour_movable and starts:  # before the first contact's approach window only
                     guard = t >= starts[0][0] - self.g.hand_approach_window
-                    shifted, found = detour(limb, t, sp[limb], sR[limb], guard, ObjectsAsObstacles(probe),
-                                            self.g.hand_detour_margin, 0.0)
-                    moved = np.any(np.abs(shifted - sp[limb]) > 1e-9, axis=1)
-                    self._detoured[limb] |= moved
-                    self._arm_only[limb] |= moved
-                    sp[limb] = shifted
-                    self.detours.extend(found)
+                    sp[limb] = self._take_detour(limb, sp[limb], *detour(limb, t, sp[limb], sR[limb], guard,
+                                                 ObjectsAsObstacles(probe), self.g.hand_detour_margin, 0.0))
                 if self.g.hand_retreat:
                     for end, c_end, c in self._contact_ends(limb):
                         normals = self._lift_normals(self._contact_normals(c))
@@ -559,12 +562,8 @@ class WholeBodyController:
                 self._arm_only[limb] |= np.linalg.norm(off, axis=1) > 1e-9
             if obstacles and self.hand_geom[limb] >= 0:
                 probe = HandBoxProbe(m, self.hand_geom[limb], self.site_id[limb], obstacles, movable)
-                shifted, found = detour(limb, t, sp[limb], sR[limb], self._in_contact(limb), probe,
-                                        self.g.hand_detour_margin, self.g.hand_detour_pre_contact)
-                self._detoured[limb] |= np.any(np.abs(shifted - sp[limb]) > 1e-9, axis=1)
-                self._arm_only[limb] |= self._detoured[limb]
-                sp[limb] = shifted
-                self.detours.extend(found)
+                sp[limb] = self._take_detour(limb, sp[limb], *detour(limb, t, sp[limb], sR[limb], self._in_contact(limb),
+                                             probe, self.g.hand_detour_margin, self.g.hand_detour_pre_contact))
             sv[limb][:, :3] = np.gradient(sp[limb], t, axis=0)
         grad = lambda a: np.gradient(a, t, axis=0)  # noqa: E731
         return _Refs(com=com, com_v=com_v, com_a=grad(com_v), base_p=tr.base_pos.copy(), base_v=tr.base_linvel.copy(),
