@@ -120,27 +120,40 @@ def generated_problem(task_name: str, overrides: dict | None = None):
     return plan.problem, plan
 
 
-def solver_options(time_limit: float):
-    """The TO options the fixtures are solved with (lomanip_to/config/solver.yaml), with a time limit."""
+def task_options(task_name: str) -> dict:
+    """The TO options a task file asks the plan service for (its ``options`` mapping)."""
+    task = yaml.safe_load((ROOT / "ros_ws/config/tasks" / f"{task_name}.yaml").read_text())
+    return dict(task.get("options") or {})
+
+
+def solver_options(time_limit: float, requested: dict | None = None):
+    """The TO options of a plan request: lomanip_to/config/solver.yaml's defaults with the task
+    file's ``options`` on top (as the planner's request carries them), and this time limit.
+
+    Before session 32 the task file's options were left out here, so ``--solve`` solved S1 and S2
+    from prompts without e.g. S2's ``carry_reach`` / ``placement_tolerance`` or S1's ``dt_lift``."""
     from lomanip_to.fixtures import CONFIG_DIR, load_options
 
     defaults = yaml.safe_load((Path(CONFIG_DIR) / "solver.yaml").read_text()) or {}
-    return load_options(defaults.get("options"), None).replaced(time_limit=float(time_limit))
+    base = load_options(defaults.get("options"), None)
+    return load_options(requested, base).replaced(time_limit=float(time_limit))
 
 
-def solve(problem, time_limit: float, out: Path | None = None) -> None:
+def solve(problem, time_limit: float, out: Path | None = None, requested: dict | None = None) -> None:
     """One TO solve of a generated problem, printing progress every 10 iterations and per stage."""
     import time as _time
     from dataclasses import replace
 
     from lomanip_to import solver
 
-    prob = replace(problem, options=solver_options(time_limit))
+    prob = replace(problem, options=solver_options(time_limit, requested))
+    print(f"TO options: the task file's {sorted(requested or {})} over solver.yaml, time limit {time_limit:.0f} s",
+          flush=True)
     last = {"stage": None}
 
     def progress(p) -> None:
         if p.stage != last["stage"] or p.iteration % 10 == 0:
-            print(f"    {p.text()}  [{p.stage}]", flush=True)
+            print(f"    {p.text()}", flush=True)
             last["stage"] = p.stage
 
     t0 = _time.perf_counter()
@@ -206,7 +219,7 @@ def main() -> int:
     print(format_structure(structure(prob, f"{args.task} from prompts")), flush=True)
     if args.solve > 0:
         tag = "_".join(f"{k}{v}" for k, v in sorted(ov.items()))
-        solve(prob, args.solve, args.out / f"{args.task}{'_' + tag if tag else ''}.npz")
+        solve(prob, args.solve, args.out / f"{args.task}{'_' + tag if tag else ''}.npz", task_options(args.task))
     return 0
 
 
