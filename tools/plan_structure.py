@@ -112,7 +112,7 @@ def generated_problem(task_name: str, overrides: dict | None = None):
     from lomanip_planner import offline
     from lomanip_to.problem import PlacementGoal
 
-    task = yaml.safe_load((ROOT / "ros_ws/config/tasks" / f"{task_name}.yaml").read_text())
+    task = load_task(task_name)
     ov = {**(task.get("scenario_overrides") or {}), **(overrides or {})}
     goals = {g["object"]: PlacementGoal(g["object"], tuple(g["position"]), float(g.get("yaw", 0.0)))
              for g in task.get("placement_goals", [])}
@@ -120,18 +120,17 @@ def generated_problem(task_name: str, overrides: dict | None = None):
     return plan.problem, plan
 
 
-def task_options(task_name: str) -> dict:
-    """The TO options a task file asks the plan service for (its ``options`` mapping)."""
-    task = yaml.safe_load((ROOT / "ros_ws/config/tasks" / f"{task_name}.yaml").read_text())
-    return dict(task.get("options") or {})
+def load_task(task_name: str) -> dict:
+    """A task file of ros_ws/config/tasks as YAML."""
+    return yaml.safe_load((ROOT / "ros_ws/config/tasks" / f"{task_name}.yaml").read_text())
 
 
 def solver_options(time_limit: float, requested: dict | None = None):
     """The TO options of a plan request: lomanip_to/config/solver.yaml's defaults with the task
     file's ``options`` on top (as the planner's request carries them), and this time limit.
 
-    Before session 32 the task file's options were left out here, so ``--solve`` solved S1 and S2
-    from prompts without e.g. S2's ``carry_reach`` / ``placement_tolerance`` or S1's ``dt_lift``."""
+    Why: without them ``--solve`` solved S1 and S2 from prompts without e.g. S2's ``carry_reach``
+    or S1's ``dt_lift`` (docs/to.md, session 32)."""
     from lomanip_to.fixtures import CONFIG_DIR, load_options
 
     defaults = yaml.safe_load((Path(CONFIG_DIR) / "solver.yaml").read_text()) or {}
@@ -219,7 +218,7 @@ def main() -> int:
     print(format_structure(structure(prob, f"{args.task} from prompts")), flush=True)
     if args.solve > 0:
         tag = "_".join(f"{k}{v}" for k, v in sorted(ov.items()))
-        solve(prob, args.solve, args.out / f"{args.task}{'_' + tag if tag else ''}.npz", task_options(args.task))
+        solve(prob, args.solve, args.out / f"{args.task}{'_' + tag if tag else ''}.npz", load_task(args.task).get("options"))
     return 0
 
 
