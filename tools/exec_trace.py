@@ -69,6 +69,9 @@ def trace_line(ex, objects: list[str]) -> str:
         if h in w._push_force:  # pushing a floor object: desired normal force, admittance shift along the normal
             n, f_des = w._push_force[h]
             line += f" fn {float(n @ w.measured_forces[h]):4.0f}/{f_des:3.0f} adm {100 * w._admittance[h][1]:4.1f}cm"
+        reg = w.registered_shifts.get(h)
+        if reg is not None and np.any(reg != 0.0):  # hand_registered_after_release: the reference's shift
+            line += f" reg {np.round(reg, 3)}"
         parts.append(line)
     com, pel = d.subtree_com[w.pelvis], d.xpos[w.pelvis]
     parts.append(f"com err {np.round(com - lerp(w.refs.com), 3)} pelvis err {np.round(pel - lerp(w.refs.base_p), 3)}")

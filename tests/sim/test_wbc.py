@@ -598,6 +598,34 @@ def test_hand_retreat_lifts_released_hands_clear_of_their_object():
         assert np.abs(np.diff(p_on - p_off, axis=0)).max() < 0.01 * (tr.t[1] - tr.t[0]) / 0.01 + 1e-9  # <= 1 m/s
 
 
+def test_hand_retreat_stops_before_the_hands_next_approach():
+    """The retreat check runs ``hand_retreat_window`` s past the release but ends where the approach
+    window of the hand's next contact begins: case_lift_box's hands let go at 0.9 s and grasp the
+    box again at 2.1 s; from then on they are not lifted off it (their references match the ones
+    without retreat lifts)."""
+    import dataclasses
+
+    let_go, again = 0.9, 2.1
+    sim, tr = simulation("case_lift_box")
+    phases = []
+    for ph in tr.phases:
+        cuts = sorted({ph.start, ph.end} | {c for c in (let_go, again) if ph.start < c < ph.end})
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            free = let_go <= a < again
+            contacts = {l: c for l, c in ph.contacts.items() if not (free and "hand" in l)}
+            phases.append(dataclasses.replace(ph, start=a, end=b, contacts=contacts))
+    tr = dataclasses.replace(tr, phases=phases)
+    on = WholeBodyController(sim.world, tr)
+    off = WholeBodyController(sim.world, tr, dataclasses.replace(WbcGains(), hand_retreat=False))
+    g = on.g
+    assert g.hand_retreat_window > tr.duration - let_go  # uncapped, the check would reach into the re-grasp
+    assert sorted(l for l, _e, _lift in on.retreat_lifts) == ["left_hand", "right_hand"]
+    tail = tr.t >= again - g.hand_approach_window + g.hand_approach_spread  # past the lift's kernel
+    assert tail.sum() > 20
+    for limb in HANDS:
+        assert np.allclose(on.refs.site_p[limb][tail], off.refs.site_p[limb][tail], atol=1e-9), limb
+
+
 def test_reference_corrections_are_summarised_for_the_logs():
     sim, tr = simulation("case_stand")
     wbc = WholeBodyController(sim.world, tr)
@@ -649,9 +677,10 @@ def test_a_released_hand_near_a_pushed_object_rides_on_its_actual_pose():
     tr = dataclasses.replace(tr, objects={**tr.objects, "box": (np.repeat(P[:1], len(P), 0), np.repeat(Q[:1], len(Q), 0))})
     on = WholeBodyController(sim.world, tr)
     off = WholeBodyController(sim.world, tr, dataclasses.replace(WbcGains(), hand_registered_after_release=False))
+    both = WholeBodyController(sim.world, tr, dataclasses.replace(WbcGains(), hand_registered_outward_only=False))
     assert sorted(on._registered) == ["left_hand", "right_hand"] and not off._registered
     for limb, regs in on._registered.items():
-        (oid, w), = regs
+        (oid, w, _normal), = regs
         assert oid == "box" and np.all(w[tr.t < let_go] == 0.0) and w[np.searchsorted(tr.t, let_go + 0.01)] == 1.0
         assert np.all((0.0 <= w) & (w <= 1.0))
     box = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, sim.world.objects["box"].body_name)
@@ -665,8 +694,19 @@ def test_a_released_hand_near_a_pushed_object_rides_on_its_actual_pose():
         wbc.compute(sim.data)
         return {l: np.array(wbc.registered_shifts.get(l, np.zeros(3))) for l in HANDS}
 
-    for limb, shift in shifts(on, let_go + 0.05).items():
+    for limb, shift in shifts(both, let_go + 0.05).items():
         assert np.allclose(shift, lag, atol=1e-6), (limb, shift)  # just released: on the box, weight 1
+    # hand_registered_outward_only: of the box's 1 cm sideways move, the hand it moves away from
+    # keeps its reference (not drawn into the face it let go of), the other is pushed out with it
+    i = np.searchsorted(tr.t, let_go + 0.05)
+    into = {}
+    for limb, shift in shifts(on, let_go + 0.05).items():
+        n = on._registered[limb][0][2][i]
+        assert abs(n[1]) > 0.9  # the grasp is on the box's sides
+        into[limb] = float(n @ lag) < 0.0
+        assert np.allclose(shift, lag - min(float(n @ lag), 0.0) * n, atol=2e-3), (limb, shift, n)
+        assert float(n @ shift) >= -1e-6
+    assert sorted(into.values()) == [False, True]
     for limb, shift in shifts(on, let_go - 0.2).items():
         assert np.allclose(shift, 0.0)  # still in the contact: hand_follows_object's business, not this
     for limb, shift in shifts(off, let_go + 0.05).items():

@@ -222,7 +222,11 @@ class WbcGains:
     # the push's plan lowers both hands 20 cm through the trolley's handle bar once it lets go; the
     # hand boxes stayed on the bar with 10-35 N for 1.8 s and the robot fell backwards (make demo)
     hand_retreat: bool = True
-    hand_retreat_window: float = 0.8  # s after the contact's end up to which the hand box is checked
+    # s after the contact's end up to which the hand box is checked, at most up to the approach
+    # window of the hand's next contact: with 0.8 the demo push's plan lowered the right hand onto the
+    # bar 0.1 s after the window, at 5.7 s, and shoved the trolley from 6 cm behind its plan to 20 cm
+    # ahead (with 1.5: the same at 6.4 s; with 2.5 it ends 4.6 cm behind: session 33)
+    hand_retreat_window: float = 3.0
     hand_retreat_rise: float = 0.3  # s from the release over which the lift rises (from 0: none before it)
     # N: the release is the contact's end or, earlier, the last time the plan's hand force is above
     # this (the demo push's plan stops pushing at 4.2 s, 0.6 s before its contact ends, and lowers
@@ -240,6 +244,11 @@ class WbcGains:
     hand_registered_after_release: bool = True
     hand_registered_near: float = 0.05
     hand_registered_far: float = 0.15
+    # ... but only the part of the object's displacement that moves the hand out of the released
+    # contact's face (along its outward normal, taken in the floor plane unless the face looks up),
+    # never into it: a trolley ahead of its plan drew the released hands after it, they touched it
+    # and pushed it on, +16-22 cm (make demo, session 32)
+    hand_registered_outward_only: bool = True
     # while a hand's grasp offset is active (approach ramp, contact, release) its position task acts
     # on its own arm only and the torso tracks the plan's (as in a detour): with the full Jacobian
     # the offsets (6-7 cm back and up, off the planned posture) pulled the whole body back; the push
@@ -439,7 +448,7 @@ class WholeBodyController:
         self._normals: dict = {}  # id(contact) -> (N,3) normals along the grid (_contact_normals)
         self._object_body: dict[str, tuple] = {}  # object -> (body id, CoM offset in the body frame)
         self._detoured = {l: np.zeros(traj.n, bool) for l in HANDS}
-        self._registered: dict[str, list] = {}  # hand -> [(object, (N,) weight)] (_registration)
+        self._registered: dict[str, list] = {}  # hand -> [(object, (N,) weight, (N,3) normal)] (_registration)
         #: hand -> shift (world, m) of its reference this step by hand_registered_after_release
         self.registered_shifts: dict[str, np.ndarray] = {}
         self._lifted: dict[str, bool] = {}  # object -> moved vertically by the plan (_lifted_in_plan)
@@ -550,7 +559,9 @@ class WholeBodyController:
                 if self.g.hand_retreat:
                     for end, c_end, c in self._contact_ends(limb):
                         normals = self._lift_normals(self._contact_normals(c))
-                        lift = retreat_lift(t, sp[limb], sR[limb], normals, end, probe, window=c_end - end + self.g.hand_retreat_window,
+                        nxt = min([s0 for s0, _c in starts if s0 >= c_end], default=np.inf) - self.g.hand_approach_window
+                        window = max(min(c_end + self.g.hand_retreat_window, nxt), c_end) - end
+                        lift = retreat_lift(t, sp[limb], sR[limb], normals, end, probe, window=window,
                                             margin=self.g.hand_retreat_margin, spread=self.g.hand_approach_spread,
                                             last=self.g.hand_retreat_rise, taper=self.g.hand_retreat_rise)  # fmt: skip
                         sp[limb] = sp[limb] + lift[:, None] * normals
@@ -806,10 +817,11 @@ class WholeBodyController:
         return out
 
     def _registration(self, limb: str, t: np.ndarray, p: np.ndarray, R: np.ndarray, probe) -> list:
-        """[(object, (N,) weight)]: after each contact of ``limb`` with an object the plan pushes on the
-        floor, until the hand's next contact, 1 while the hand box at its planned pose (``p``, ``R``)
-        is within ``hand_registered_near`` of the planned movable objects, falling smoothly to 0 at
-        ``hand_registered_far`` (``WbcGains.hand_registered_after_release``)."""
+        """[(object, (N,) weight, (N,3) normal)]: after each contact of ``limb`` with an object the plan
+        pushes on the floor, until the hand's next contact, 1 while the hand box at its planned pose
+        (``p``, ``R``) is within ``hand_registered_near`` of the planned movable objects, falling
+        smoothly to 0 at ``hand_registered_far`` (``WbcGains.hand_registered_after_release``); the
+        normal is the released contact's outward one (``hand_registered_outward_only``)."""
         g, out = self.g, []
         starts = [s0 for s0, _c in self._contact_starts(limb)]
         for _end, c_end, c in self._contact_ends(limb):
@@ -822,8 +834,11 @@ class WholeBodyController:
                 d = probe.clearance(p[k], R[k], int(k))[1]
                 u = (g.hand_registered_far - d) / max(g.hand_registered_far - g.hand_registered_near, 1e-9)
                 w[k] = float(smoothstep(np.clip(u, 0.0, 1.0)))
-            if np.any(w > 0):
-                out.append((oid, w))
+            if np.any(w > 0):  # the face's outward direction in the floor plane the object moves in
+                n = self._contact_normals(c) * np.array([1.0, 1.0, 0.0])
+                flat = np.linalg.norm(n, axis=1, keepdims=True) < 0.3  # a top face: its own normal
+                n = np.where(flat, self._contact_normals(c), n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-9))
+                out.append((oid, w, n))
         return out
 
     def _lift_normals(self, normals: np.ndarray) -> np.ndarray:
@@ -1139,10 +1154,13 @@ class WholeBodyController:
                 p_ref = p_plan = lerp(R_.site_p[limb])
                 registered = None  # free in the plan, near an object it pushed: the object's displacement
                 if planned.get(limb) is None:
-                    for oid, wr in self._registered.get(limb, ()):
+                    for oid, wr, nr in self._registered.get(limb, ()):
                         w_r = wr[i] + s * (wr[i + 1] - wr[i])
                         if w_r > 0.0:
                             registered = w_r * (self._on_actual_object(data, oid, p_plan, i, s) - p_plan)
+                            if g.hand_registered_outward_only:  # never into the face it let go of
+                                n = nr[i if s < 0.5 else i + 1]
+                                registered = registered - min(float(n @ registered), 0.0) * n
                 if g.hand_follows_object and limb in contacts and contacts[limb] is not None:
                     p_ref = self._on_actual_object(data, contacts[limb].object_id, p_ref, i, s)
                     if g.hand_push_admittance:
