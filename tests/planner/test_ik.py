@@ -59,6 +59,18 @@ def test_pelvis_floor_is_one_sided(model):
                                _finite_difference_jacobian(configuration, below), atol=1e-6)
 
 
+def test_pelvis_ceiling_pulls_down_only_above_it(model):
+    configuration = mink.Configuration(model, _bent(model))
+    z = configuration.data.body("pelvis").xpos[2]
+    inside = PelvisFloorTask(z - 0.05, cost=30.0, ceiling=z + 0.05)
+    assert inside.compute_error(configuration)[0] == 0.0
+    assert not np.any(inside.compute_jacobian(configuration))
+    above = PelvisFloorTask(-np.inf, cost=30.0, ceiling=z - 0.05)
+    assert above.compute_error(configuration)[0] == pytest.approx(0.05)
+    np.testing.assert_allclose(above.compute_jacobian(configuration),
+                               _finite_difference_jacobian(configuration, above), atol=1e-6)
+
+
 def test_descent_reaches_a_reachable_hand_target_and_stops(model):
     configuration = mink.Configuration(model, model.key("stand").qpos.copy())
     hand = mink.FrameTask("left_hand", "site", position_cost=100.0, orientation_cost=0.0)

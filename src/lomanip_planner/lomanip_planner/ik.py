@@ -49,23 +49,26 @@ class ComOverFeetTask(mink.Task):
 
 
 class PelvisFloorTask(mink.Task):
-    """One-sided pull: the pelvis origin no lower than ``height``; no cost above it.
+    """One-sided pull: the pelvis origin no lower than ``height``; no cost above it, or, with a
+    ``ceiling``, none up to it and a pull down above it.
 
-    The error min(0, z - height) is continuously differentiable when squared, so the descent sees
-    one smooth cost instead of a task that is switched on and off between iterations.
+    The error min(0, z - height) + max(0, z - ceiling) is continuously differentiable when
+    squared, so the descent sees one smooth cost instead of a task switched on and off between
+    iterations.
     """
 
-    def __init__(self, height: float, cost: float) -> None:
+    def __init__(self, height: float, cost: float, ceiling: float | None = None) -> None:
         super().__init__(cost=np.array([cost]), gain=1.0, lm_damping=0.0)
         self.height = float(height)
+        self.ceiling = np.inf if ceiling is None else max(float(ceiling), self.height)
 
     def compute_error(self, configuration: mink.Configuration) -> np.ndarray:
         z = configuration.data.body("pelvis").xpos[2]
-        return np.array([min(0.0, z - self.height)])
+        return np.array([min(0.0, z - self.height) + max(0.0, z - self.ceiling)])
 
     def compute_jacobian(self, configuration: mink.Configuration) -> np.ndarray:
         model, data = configuration.model, configuration.data
-        if data.body("pelvis").xpos[2] >= self.height:
+        if self.height <= data.body("pelvis").xpos[2] <= self.ceiling:
             return np.zeros((1, model.nv))
         jac = np.zeros((3, model.nv))
         mujoco.mj_jacBody(model, data, jac, None, model.body("pelvis").id)

@@ -92,6 +92,14 @@ _PARKED = (0.0, 0.0, -100.0)
 
 #: weight of the pelvis height prior (hands 100-1000, feet 1000, base orientation 5, posture 0.01)
 PELVIS_HEIGHT_COST = 3.0
+#: more than this fraction of the leg above the person's pelvis height the pelvis is pulled down
+#: (weight PELVIS_CEILING_COST); None (the default): no ceiling. Measured, not yet on: S2's place,
+#: demonstrated in a squat (74 % of the leg), stands the G1 at 0.77 m bent over the deck with its
+#: pelvis 17 cm ahead of its feet, and the TO does not converge from it (sessions 29, 32). With a
+#: ceiling at 0.15 the IK finds a 0.39 m squat instead (another start wins once standing costs);
+#: the fixture the TO converges from squats to 0.58 m (docs/planner_s1.md, session 33)
+PELVIS_HEIGHT_BAND: float | None = None
+PELVIS_CEILING_COST = 30.0
 
 
 def pelvis_height_ratio(keypoints: Mapping[str, np.ndarray]) -> float | None:
@@ -607,6 +615,8 @@ class Retargeter:
         if target.pelvis_height_ratio is not None and feet:   # a soft floor under the pelvis
             pelvis_z = float(np.mean([t.position[2] for t in feet])) + target.pelvis_height_ratio * self.leg_length
             tasks.append(PelvisFloorTask(pelvis_z, PELVIS_HEIGHT_COST))
+            if PELVIS_HEIGHT_BAND is not None:   # and a ceiling well above it
+                tasks.append(PelvisFloorTask(-np.inf, PELVIS_CEILING_COST, pelvis_z + PELVIS_HEIGHT_BAND * self.leg_length))
         posture = self.stand.copy()
         for name, angle in target.joint_prior.items():
             if name not in G1_JOINT_NAMES:
