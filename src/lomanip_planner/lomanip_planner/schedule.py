@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lomanip_to.problem import FLOOR, STANCE, WALKING, ContactPhase, ContactSpec, Keyframe, ObjectMotion, PlacementGoal
+from lomanip_to.discretize import obj_prims_world, outside_top
 from lomanip_to.route import Footprint, footprint_of, point_along, route_length, shortest_route, turns, walking_heading
 
 from .retargeting import FEET, HANDS, LimbTarget
@@ -201,10 +202,11 @@ class _Builder:
             self.footprints[oid] = footprint_of(o, position, (0.0, 0.0, yaw))
 
     def support_under(self, oid: str, position) -> str:
-        """What an object placed at ``position`` (its origin, kept level) rests on: the highest
-        scene object whose top is at the placed bottom and whose footprint holds the point, else the
-        floor.  Supports are taken where the scene has them (they have not moved before a place in
-        S1/S2); simplification (named)."""
+        """What an object placed at ``position`` (its origin, kept level) rests on: the scene object
+        with the highest level primitive whose top is at the placed bottom and holds the point, else
+        the floor.  Per primitive: a trolley's top is its handle, its deck is lower (taken whole,
+        S2's box on the deck rested on the floor in the schedule).  Supports are taken where the
+        scene has them (they have not moved before a place in S1/S2); simplification (named)."""
         o = self.objects.get(oid)
         if o is None or not o.primitives:
             return FLOOR
@@ -213,10 +215,11 @@ class _Builder:
         for sid, s in self.objects.items():
             if sid == oid or not s.primitives:
                 continue
-            top = float(s.position[2]) + s.top_z()
-            fp = footprint_of(s, s.position, s.rpy())
-            if abs(top - bottom) < 0.03 and fp.distance(position) < 1e-6 and top > best_top:
-                best, best_top = sid, top
+            for c, R, half in obj_prims_world(s):
+                top = float(c[2] + half[2])
+                if (abs(R[2, 2] - 1.0) < 1e-6 and abs(top - bottom) < 0.03 and top > best_top
+                        and outside_top(position, c, R, half) <= 0.0):
+                    best, best_top = sid, top
         return best
 
     def _obstacles(self, targets: dict[str, tuple[np.ndarray, str]]) -> list[Footprint]:
@@ -379,9 +382,14 @@ def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timi
                 # friction; the TO's `supported`) until the subtask ends at rest. Why: as `fixed`
                 # from the place knot on, S1's guide could not meet the place (box kinematics 5e-2)
                 # and its path sank into the floor; supported, the same guide converged
+                # On another object's top (S2's box on the trolley's deck) it is static from the
+                # place knot on instead, as in the S2 fixture the TO converges on: the TO finds the
+                # top under it there (its `supported` mode takes an object's highest top)
                 sup = b.support_under(placed, sk.placement.position)
                 b.resting_on[placed] = sup
-                resting = {o: ObjectMotion("free") for o in b.carried} | {placed: ObjectMotion("supported", support=sup)}
+                resting = {o: ObjectMotion("free") for o in b.carried}
+                if sup == FLOOR:
+                    resting[placed] = ObjectMotion("supported", support=sup)
                 b.add(tm.release, sk.index, objects=resting)
                 b.held = {h: c for h, c in b.held.items() if c.object_id != placed}
                 b.add(tm.retract, sk.index, objects=resting)
