@@ -393,6 +393,7 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
     win, wd = get_window(model, data.structure)
     run = _Run(prob, progress, t_start)
     segs = segments(prob) if opt.subtask_segments and data.grid.K > SEGMENT_MIN_KNOTS else []
+    t_failed = 0.0  # where a failed segment starts on the plan's clock
     if len(segs) <= 1:
         get_nlp(wd, data.structure, data.grid.K, threads)  # assemble before timing
         build_time = time.perf_counter() - t_start
@@ -437,8 +438,9 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
                     status = pst
                 else:
                     status = f"{status}; whole-horizon polish: {pst} (stitched subtask solution kept)"
-        else:
+        else:  # the failed segment's iterate alone, on its own clock (shifted back below)
             data, (z, _, _, _, nlp, args, Pm, lbg, ubg, f) = parts[-1]
+            t_failed = segs[len(parts) - 1][0]
     solve_time = time.perf_counter() - t_start - build_time
     res = extract(model, data, win, nlp, z, args, Pm, lbg, ubg)
     stats = res.stats
@@ -451,6 +453,8 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
     stats.stages = run.stages
     stats.peak_memory_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     stats.checks = run_checks(model, data, res)
+    if t_failed:
+        on_plan_clock(res, t_failed)
     tol_ok = stats.max_constraint_violation.value <= 1e-2
     stats.success = bool(converged and tol_ok and all(c["ok"] for c in stats.checks.values()))
     res.densify(opt.output_rate)
@@ -610,6 +614,24 @@ def _grips_at_end(win: Window, sd: ProblemData, Pm: np.ndarray) -> dict:
             continue
         out[h] = (c.object_id, Pm[win.P[f"{h}_loc"], k].copy(), Pm[win.P[f"{h}_n"], k].copy())
     return out
+
+
+def on_plan_clock(res: TOResult, t0: float) -> None:
+    """Moves a segment's result, whose problem starts at 0, to the plan's clock where the segment
+    starts at ``t0``: knot times, the violations' and penetration's times and the checks' places.
+    Why: a failed S2 carry (3.0-10.6 s) reported its worst violation "at t=0.00 s" and its
+    penetration at 6.2 s, 3 s before where they were (docs/to.md, session 33)."""
+    res.t_knots = np.asarray(res.t_knots, float) + t0
+    stats = res.stats
+    for name in ("max_dynamics_violation", "max_contact_violation", "max_constraint_violation"):
+        v = getattr(stats, name)
+        setattr(stats, name, Violation(v.value, v.time + t0, v.constraint))
+    stats.max_penetration_time += t0
+    shift = lambda m: f"t={float(m.group(1)) + t0:.2f}"  # noqa: E731
+    for check in (stats.checks or {}).values():
+        for key in ("where", "between_knots_where"):
+            if isinstance(check.get(key), str):
+                check[key] = re.sub(r"t=(-?\d+(?:\.\d+)?)", shift, check[key])
 
 
 def _stitch(win: Window, data: ProblemData, parts) -> tuple:
