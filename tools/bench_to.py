@@ -44,6 +44,7 @@ from lomanip_sim.scenario import default_scenarios_path  # noqa: E402
 from lomanip_to import solver  # noqa: E402
 from lomanip_to.fixtures import load_problem  # noqa: E402
 from lomanip_to.model import G1Model  # noqa: E402
+from lomanip_to.problem import ProblemError  # noqa: E402
 
 VARIANTS = {
     "all": {},
@@ -174,7 +175,11 @@ def main(argv=None) -> int:
     for sc in a.scenarios:
         cells = grid(sc) if a.full else grid(sc)[:1]
         for over, variant in itertools.product(cells, a.variants):
-            r = run_case(model, sc, over, variant, a.out, a.time_limit, extra, a.resolve)
+            try:
+                r = run_case(model, sc, over, variant, a.out, a.time_limit, extra, a.resolve)
+            except ProblemError as exc:  # a bad --option (or problem) is refused before any solve
+                print(f"bench_to: {exc}", file=sys.stderr)
+                return 2
             rows.append(r)
             print(fmt_row(r), flush=True)
             if r["resolve_s"] is not None:
