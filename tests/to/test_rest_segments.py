@@ -117,3 +117,19 @@ def test_carried_object_keeps_its_place_relative_to_the_base(g1, s1):
     for k in range(1, sd.grid.K):
         np.testing.assert_allclose(_relative_to_base(X[k], traj[k]), rel0, atol=1e-6)
     assert np.linalg.norm(X[-1, :2] - X[0, :2]) > 0.3  # the base walked
+
+
+def test_a_lift_can_go_with_the_segment_before_it(s1):
+    """``Options.lift_with_previous_segment``: S1's carry opens with the lift (3.0-3.8 s, the box
+    free from its first knot); with the option that phase ends the first segment instead of
+    starting the second, so the second starts holding the lifted box at rest. Other cuts stay."""
+    from dataclasses import replace
+
+    from lomanip_to.discretize import _lifts
+
+    off = solver.segments(s1)
+    on = solver.segments(replace(s1, options=replace(s1.options, lift_with_previous_segment=True)))
+    i = next(i for i, ph in enumerate(s1.phases) if ph.start == pytest.approx(off[1][0]))
+    assert _lifts(s1.phases, i)   # the second segment opens with the lift
+    assert on[0] == pytest.approx((0.0, s1.phases[i].end)) and on[1][0] == pytest.approx(s1.phases[i].end)
+    assert on[1:][-1] == off[-1] and len(on) == len(off)

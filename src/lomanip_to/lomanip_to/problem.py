@@ -263,6 +263,12 @@ class Options:
     #: hold), so each NLP is shorter and starts and ends at rest.  Off: on S1's carry the piece
     #: after the lift did not converge where the whole subtask did (docs/to.md, session 9)
     rest_segments: bool = False
+    #: a subtask that opens with a lift (an object goes free in its first phase) starts its segment
+    #: after that phase: the lift is solved with the segment before it, whose last knot otherwise
+    #: stands at rest without the object's weight in its hands, and the next segment must start from
+    #: there at rest holding it (S2's carry: the robot-and-box CoM 2 cm past the soles at its first
+    #: knot, infeasible; docs/to.md, session 33). Off by default (measured on S2 only)
+    lift_with_previous_segment: bool = False
     #: iteration cap of the whole-horizon polish after the subtask solves (0 = keep the stitched one).
     #: Off by default: on S1 it never converged within 60 iterations and cost 90-150 s a run
     #: (docs/to.md); the stitched trajectory is evaluated on the whole problem's rows and checked as it is.

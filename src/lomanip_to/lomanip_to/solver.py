@@ -529,12 +529,20 @@ def segments(prob: Problem, rest: bool | None = None) -> list:
     """[(t0, t1)] of the pieces solved one after the other: consecutive subtasks (phase boundaries
     where the subtask index changes), each also cut at its :func:`rest_points` when ``rest`` (by
     default ``Options.rest_segments``)."""
+    from .discretize import _lifts
+
     rest = prob.options.rest_segments if rest is None else rest
     cuts = set(rest_points(prob)) if rest else set()
-    out, t0 = [], 0.0
-    for i, ph in enumerate(prob.phases):
-        last = i == len(prob.phases) - 1
-        if last or prob.phases[i + 1].subtask_index != ph.subtask_index or ph.end in cuts:
+    phases = prob.phases
+    out, t0, deferred = [], 0.0, False
+    for i, ph in enumerate(phases):
+        last = i == len(phases) - 1
+        if last or phases[i + 1].subtask_index != ph.subtask_index or ph.end in cuts or deferred:
+            deferred = False
+            if (not last and prob.options.lift_with_previous_segment and _lifts(phases, i + 1)
+                    and i + 2 < len(phases) and phases[i + 2].subtask_index == phases[i + 1].subtask_index):
+                deferred = True   # the lift's phase goes with this segment (Options.lift_with_previous_segment)
+                continue
             out.append((t0, ph.end))
             t0 = ph.end
     return out
