@@ -835,10 +835,10 @@ class WholeBodyController:
                 u = (g.hand_registered_far - d) / max(g.hand_registered_far - g.hand_registered_near, 1e-9)
                 w[k] = float(smoothstep(np.clip(u, 0.0, 1.0)))
             if np.any(w > 0):  # the face's outward direction in the floor plane the object moves in
-                n = self._contact_normals(c) * np.array([1.0, 1.0, 0.0])
-                flat = np.linalg.norm(n, axis=1, keepdims=True) < 0.3  # a top face: its own normal
-                n = np.where(flat, self._contact_normals(c), n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-9))
-                out.append((oid, w, n))
+                n = self._contact_normals(c)
+                level = n * np.array([1.0, 1.0, 0.0])
+                size = np.linalg.norm(level, axis=1, keepdims=True)
+                out.append((oid, w, np.where(size < 0.3, n, level / np.maximum(size, 1e-9))))  # < 0.3: a top face
         return out
 
     def _lift_normals(self, normals: np.ndarray) -> np.ndarray:

@@ -22,7 +22,7 @@ import numpy as np
 
 from .assembly import AssembledNLP, WindowDerivatives
 from .checks import penetration_per_knot, run_checks
-from .discretize import ProblemData
+from .discretize import ProblemData, _lifts
 from .model import FEET, HANDS, LIMBS, SOLE_FORCE_POINTS, G1Model, rpy_to_rot
 from .problem import TO_NOT_CONVERGED, WALKING, Problem, validate_problem
 from .result import STALLED_STATUS, Progress, SolverStats, TOResult, Violation
@@ -529,8 +529,6 @@ def segments(prob: Problem, rest: bool | None = None) -> list:
     """[(t0, t1)] of the pieces solved one after the other: consecutive subtasks (phase boundaries
     where the subtask index changes), each also cut at its :func:`rest_points` when ``rest`` (by
     default ``Options.rest_segments``)."""
-    from .discretize import _lifts
-
     rest = prob.options.rest_segments if rest is None else rest
     cuts = set(rest_points(prob)) if rest else set()
     phases = prob.phases
