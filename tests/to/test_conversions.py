@@ -167,3 +167,15 @@ def test_options_round_trip_the_rows_on_the_motion_between_knots(model, name, va
     req = conv.request_from_problem(prob, model.joint_names)
     assert getattr(conv.options_from_msg(req.options), name) == value
     assert getattr(conv.options_from_msg(TrajectoryOptions(**{name: -1.0})), name) == 0.0  # off
+
+
+def test_options_round_trip_lift_with_previous_segment(model):
+    from lomanip_msgs.msg import TrajectoryOptions
+    from lomanip_to.problem import Options
+
+    assert conv.options_from_msg(TrajectoryOptions()).lift_with_previous_segment is Options().lift_with_previous_segment is False
+    prob = load_problem("case_one_step", model=model)
+    prob.options = prob.options.replaced(lift_with_previous_segment=True)
+    req = conv.request_from_problem(prob, model.joint_names)
+    assert req.options.lift_with_previous_segment is True
+    assert conv.options_from_msg(req.options).lift_with_previous_segment is True
