@@ -107,3 +107,22 @@ def test_descent_never_raises_the_cost(model, monkeypatch):
     assert len(iterates) > 10
     assert np.all(np.diff(iterates) <= 1e-12)
     assert result.cost < 1e-2 * iterates[0]
+
+
+def test_com_over_feet_with_a_load_balances_robot_and_load_together(model):
+    configuration = mink.Configuration(model, _bent(model))
+    plain, loaded = ComOverFeetTask(FEET), ComOverFeetTask(FEET)
+    point = np.array([0.5, 0.1, 0.9])
+    loaded.set_load(5.0, point)
+    robot = float(model.body_subtreemass[1])
+    np.testing.assert_allclose(loaded.compute_error(configuration),
+                               (robot * plain.compute_error(configuration) + 5.0 * (point[:2] - _mid_feet(configuration)))
+                               / (robot + 5.0), atol=1e-12)
+    np.testing.assert_allclose(loaded.compute_jacobian(configuration),
+                               _finite_difference_jacobian(configuration, loaded), atol=1e-6)
+    loaded.set_load(0.0)
+    np.testing.assert_allclose(loaded.compute_error(configuration), plain.compute_error(configuration))
+
+
+def _mid_feet(configuration: mink.Configuration) -> np.ndarray:
+    return np.mean([configuration.data.site(f).xpos[:2] for f in FEET], axis=0)

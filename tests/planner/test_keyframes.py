@@ -93,3 +93,34 @@ def test_s1_carried_box_nominal_is_set_down_at_its_goal_not_under_the_floor():
     walking = [k for k in range(data.grid.K)
                if modes[k] == "free" and data.prob.phases[data.grid.phase[k]].phase_type == "walking"]
     assert walking and np.median(box[walking, 2]) > 0.5   # carried, not dragged along the floor
+
+
+def _heavy_pick(retargeter: Retargeter, monkeypatch, margin: float | None):
+    """A 10 kg crate picked at arm's length from the person's stance, with the balance step at ``margin``."""
+    from lomanip_planner import keyframes
+
+    monkeypatch.setattr(keyframes, "LOAD_BALANCE_MARGIN", margin)
+    n = lambda *v: np.array(v, float)  # noqa: E731
+    crate = SceneObject("crate", "box", True, (0.62, 0.0, 0.85), mass=10.0, primitives=[Primitive("box", (0.3, 0.3, 0.3))])
+    st = SubtaskPerception(0, "pick up the crate", [
+        LimbTarget("left_foot", n(0.0, 0.12, 0.0)), LimbTarget("right_foot", n(0.0, -0.12, 0.0)),
+        LimbTarget("left_hand", n(0.62, 0.15, 0.85), n(0, 1, 0), "crate"),
+        LimbTarget("right_hand", n(0.62, -0.15, 0.85), n(0, -1, 0), "crate")])
+    stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+    return retarget_subtasks([st], [crate], stance, retargeter)[0]
+
+
+def test_a_pick_at_arms_length_balances_the_load_over_the_feet(monkeypatch):
+    from lomanip_planner.keyframes import LOAD_BALANCE_MARGIN
+
+    retargeter = Retargeter()
+    unbalanced = _heavy_pick(retargeter, monkeypatch, None).load_balance
+    assert unbalanced.mass == 10.0 and unbalanced.margin_after == unbalanced.margin_before < LOAD_BALANCE_MARGIN
+    kf = _heavy_pick(retargeter, monkeypatch, LOAD_BALANCE_MARGIN)
+    assert kf.load_balance.margin_before == pytest.approx(unbalanced.margin_before)
+    assert kf.load_balance.margin_after >= LOAD_BALANCE_MARGIN - 1e-3
+    r = kf.retarget
+    assert max(r.residuals.values()) <= 0.01 and r.within_joint_limits and r.min_self_distance >= 0.0
+    feet = [c.position for c in kf.contacts if c.limb.endswith("foot")]
+    np.testing.assert_allclose([p[:2] for p in feet], [[0.0, 0.12], [0.0, -0.12]] + kf.load_balance.shift, atol=1e-9)
+    assert [p[2] for p in feet] == [0.0, 0.0]

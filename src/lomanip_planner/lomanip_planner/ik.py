@@ -26,21 +26,37 @@ class ComOverFeetTask(mink.Task):
     """Horizontal CoM over the midpoint of two foot sites, where the feet are now.
 
     The target moves with the feet (feet may slide on the floor), so it is part of the error and
-    of its Jacobian instead of a target reset every iteration.
+    of its Jacobian instead of a target reset every iteration. With a load (:meth:`set_load`: a
+    point mass held at a fixed place, as an object in the hands) the CoM is the robot's and the
+    load's together.
     """
 
     def __init__(self, feet: Sequence[str], cost: float = 1.0) -> None:
         super().__init__(cost=np.full(2, cost), gain=1.0, lm_damping=0.0)
         self.feet = tuple(feet)
+        self.load_mass = 0.0
+        self.load_point = np.zeros(3)
+
+    def set_load(self, mass: float = 0.0, point: np.ndarray | None = None) -> None:
+        """A point load (kg, world m) counted in the CoM; ``mass`` 0 removes it."""
+        self.load_mass = max(float(mass), 0.0)
+        self.load_point = np.zeros(3) if point is None else np.asarray(point, float).copy()
+
+    def _robot_share(self, model: mujoco.MjModel) -> float:
+        robot = float(model.body_subtreemass[1])
+        return robot / (robot + self.load_mass)
 
     def compute_error(self, configuration: mink.Configuration) -> np.ndarray:
         mid = np.mean([configuration.data.site(f).xpos for f in self.feet], axis=0)
-        return configuration.data.subtree_com[1][:2] - mid[:2]
+        share = self._robot_share(configuration.model)
+        com = share * configuration.data.subtree_com[1] + (1.0 - share) * self.load_point
+        return com[:2] - mid[:2]
 
     def compute_jacobian(self, configuration: mink.Configuration) -> np.ndarray:
         model, data = configuration.model, configuration.data
         jac = np.zeros((3, model.nv))
         mujoco.mj_jacSubtreeCom(model, data, jac, 1)
+        jac *= self._robot_share(model)
         for f in self.feet:
             jac_site = np.zeros((3, model.nv))
             mujoco.mj_jacSite(model, data, jac_site, None, model.site(f).id)

@@ -8,6 +8,10 @@ pose (pelvis orientation after the rigid transfer, joint angles mapped onto the 
   a foot without a contact keeps its current position;
 * hand targets: the transferred points and normals;
 * the human pelvis orientation and joint angles go into the IK as base orientation and posture prior;
+* a keyframe whose hands take up (pick) or hold (place) an object must balance the object's
+  weight too: when the robot-and-object CoM is not ``LOAD_BALANCE_MARGIN`` inside the soles, the
+  floor feet step towards the load and the IK is solved again (:func:`_balance_under_load`; a
+  departure from the paper, which takes the feet from the person's stance);
 * the desired mid-foot position of eq. (2) is the keyframe's mid-foot point, referred to the object
   the hands touch;
 * perception sees every object where it is now, but earlier subtasks may move it: a subtask whose
@@ -30,6 +34,34 @@ from lomanip_to.route import footprint_of
 from .retargeting import FEET, HANDS, LimbTarget, Obstacle, RetargetTarget, Retargeter, RetargetingError
 from .schedule import Schedule, actions_of, Stance, SubtaskKeyframe, Timing, plan_schedule
 from .symmetry import best_grasp_match, rotate_about, stance_cost, stance_yaw, yaw_symmetries
+
+
+#: a keyframe whose hands take up (pick) or hold (place) a lifted object keeps the robot-and-object
+#: CoM at least this far inside its feet's support polygon (the soles shrunk by the TO's CoP margin,
+#: lomanip_to.model.SOLE_FORCE_POINTS), its floor feet stepping towards the load when it is not;
+#: None switches the step off. Why: S2's pick kept the person's stance, feet 0.58 m behind the
+#: hands, and the robot-and-box CoM 2 cm past the toes made the carry's first knot infeasible
+#: (docs/planner_s1.md, sessions 33-34).
+LOAD_BALANCE_MARGIN: float | None = 0.02
+#: weight of the load-aware CoM task in those re-solves (the contacts weigh 100-1000)
+LOAD_BALANCE_COST = 100.0
+#: IK re-solves at most: the first on the same feet, each next one stepping by the remaining
+#: shortfall (the body moves with the feet)
+LOAD_STANCE_STEPS = 4
+#: longest total step of the feet towards a load (m)
+LOAD_STANCE_MAX_SHIFT = 0.25
+
+
+@dataclass(frozen=True)
+class LoadBalance:
+    """The balance of a keyframe whose hands hold ``mass`` kg: signed margins (m, positive inside)
+    of the robot-and-load CoM in the support polygon before and after the feet stepped by
+    ``shift`` (m, world xy)."""
+
+    mass: float
+    margin_before: float
+    margin_after: float
+    shift: np.ndarray
 
 
 @dataclass
@@ -233,7 +265,8 @@ def _solve_keyframe(retargeter: Retargeter, st: SubtaskPerception, targets: tupl
     """The keyframe's IK, relaxed step by step until it is feasible: the person's feet and pelvis
     height; then floor feet that may slide (the demonstrator's stance is an adult's: the G1 steps
     to where it reaches); then without the pelvis height (differential IK is local: a height the
-    hands cannot reach from may leave it short). Returns (result, whether the feet slid)."""
+    hands cannot reach from may leave it short). Returns (result, whether the feet slid, the
+    rung's pelvis height ratio)."""
     ladder = [(False, st.pelvis_height_ratio), (True, st.pelvis_height_ratio)]
     if st.pelvis_height_ratio is not None:
         ladder.append((True, None))
@@ -242,10 +275,62 @@ def _solve_keyframe(retargeter: Retargeter, st: SubtaskPerception, targets: tupl
         try:
             res = retargeter.solve(RetargetTarget(targets, base_orientation, st.joint_prior, floor_feet_slide=slide,
                                                   pelvis_height_ratio=ratio, obstacles=obstacles), q)
-            return res, slide
+            return res, slide, ratio
         except RetargetingError as exc:
             error = exc
     raise RetargetingError(error.code, f"subtask {st.index} ({st.prompt!r}): {error}") from error
+
+
+def _hand_load(actions: list[str], targets: list[LimbTarget], by_id: dict[str, SceneObject],
+               rolling: frozenset) -> tuple[float, np.ndarray] | None:
+    """(mass kg, hands' midpoint) of what a pick or place keyframe's hands hold up; None if nothing
+    (a push's rolling object rests on its wheels)."""
+    if not {"pick", "place"} & set(actions):
+        return None
+    hands = [t for t in targets if t.limb in HANDS]
+    held = {t.object_id for t in hands if t.object_id in by_id and by_id[t.object_id].movable
+            and t.object_id not in rolling}
+    mass = float(sum(by_id[o].mass for o in held))
+    return (mass, np.mean([t.position for t in hands], axis=0)) if mass > 0.0 else None
+
+
+def _balance_under_load(retargeter: Retargeter, st: SubtaskPerception, targets: list[LimbTarget], res,
+                        base_orientation, ratio: float | None, obstacles: tuple[Obstacle, ...],
+                        load: tuple[float, np.ndarray]) -> tuple[object, list[LimbTarget], LoadBalance]:
+    """The keyframe, balanced with its load: when the robot-and-load CoM is less than
+    ``LOAD_BALANCE_MARGIN`` inside the soles, the IK is solved again with the load in its CoM task
+    (at ``LOAD_BALANCE_COST``), first on the same feet, then with the floor feet stepped towards
+    the load by the remaining shortfall (at most ``LOAD_STANCE_STEPS`` solves and
+    ``LOAD_STANCE_MAX_SHIFT``). A solve the IK cannot finish, or one that does not raise the
+    margin, ends the search with the best keyframe so far. Feet on an object stay where they are."""
+    from lomanip_to.model import SOLE_FORCE_POINTS
+
+    margin, normal = retargeter.support_margin(SOLE_FORCE_POINTS, *load)
+    first, total = margin, np.zeros(2)
+    floor_feet = sum(t.limb in FEET for t in targets) == 2 and \
+        all(t.object_id in ("", FLOOR) for t in targets if t.limb in FEET)
+    for k in range(LOAD_STANCE_STEPS if LOAD_BALANCE_MARGIN is not None else 0):
+        deficit = LOAD_BALANCE_MARGIN - margin
+        if deficit <= 1e-3 or (k > 0 and not floor_feet) or np.linalg.norm(total + deficit * normal) > LOAD_STANCE_MAX_SHIFT:
+            break
+        step = np.zeros(3) if k == 0 else np.array([*(deficit * normal), 0.0])
+        moved = [replace(t, position=t.position + step) if t.limb in FEET else t for t in targets]
+        try:
+            new = retargeter.solve(RetargetTarget(tuple(moved), base_orientation, st.joint_prior, floor_feet_slide=False,
+                                                  pelvis_height_ratio=ratio, obstacles=obstacles, load_mass=load[0],
+                                                  load_point=load[1], balance_cost=LOAD_BALANCE_COST), res.qpos)
+        except RetargetingError:
+            if k == 0 and floor_feet:
+                continue   # the same feet cannot balance it: step
+            break
+        new_margin, new_normal = retargeter.support_margin(SOLE_FORCE_POINTS, *load)
+        if new_margin <= margin:
+            if k == 0 and floor_feet:
+                continue
+            break
+        res, targets, margin, normal, total = new, moved, new_margin, new_normal, total + step[:2]
+    retargeter.configuration.update(res.qpos)
+    return res, targets, LoadBalance(load[0], first, margin, total)
 
 
 def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObject], stance: Stance,
@@ -297,24 +382,29 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
                 if c.object_id not in by_id:
                     raise RetargetingError(-2, f"subtask {st.index}: {limb} touches unknown object {c.object_id!r}")
                 targets.append(LimbTarget(limb, np.asarray(c.position, float), np.asarray(c.normal, float), c.object_id))
-        res, slid = _solve_keyframe(retargeter, st, tuple(targets), base_orientation, q,
-                                    scene_obstacles(objects, moved))
+        obstacles = scene_obstacles(objects, moved)
+        res, slid, ratio = _solve_keyframe(retargeter, st, tuple(targets), base_orientation, q, obstacles)
         if slid:
             targets = [LimbTarget(t.limb, res.contact_points[t.limb].copy(), t.normal, t.object_id)
                        if t.limb in FEET else t for t in targets]
-            for t in targets:
-                if t.limb in FEET:
-                    feet_now[t.limb] = (t.position.copy(), t.object_id)
+        actions = actions_of(st.prompt)
+        rolling = frozenset(o.id for o in objects if o.object_class == "trolley")
+        load = _hand_load(actions, targets, by_id, rolling)
+        balance = None
+        if load is not None:
+            res, targets, balance = _balance_under_load(retargeter, st, targets, res, base_orientation, ratio,
+                                                        obstacles, load)
+        for t in targets:
+            if t.limb in FEET:
+                feet_now[t.limb] = (t.position.copy(), t.object_id)
         q = res.qpos
         hand_objects = [t.object_id for t in targets if t.limb in HANDS]
-        actions = actions_of(st.prompt)
         if placing is not None:
             held_now.discard(placing)
         if "pick" in actions:
             for oid in dict.fromkeys(hand_objects):
                 grasps[oid] = {c.limb: c for c in contacts if c.limb in HANDS and c.object_id == oid}
                 held_now.add(oid)
-        rolling = frozenset(o.id for o in objects if o.object_class == "trolley")
         placement = next((placements[oid] for oid in hand_objects if oid in placements), None)
         push_feet = []
         if "push" in actions_of(st.prompt) and hand_objects:
@@ -329,7 +419,7 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
                 feet_now[t.limb] = (t.position.copy(), t.object_id)
         out.append(SubtaskKeyframe(st.index, st.prompt, res.qpos, targets, rolling_objects=rolling,
                                    placement=placement, reference_object_id=hand_objects[0] if hand_objects else "",
-                                   retarget=res, push_feet=push_feet))
+                                   retarget=res, push_feet=push_feet, load_balance=balance))
     return out
 
 

@@ -36,6 +36,7 @@ import numpy as np
 from lomanip_sim import frames, world
 from lomanip_sim.robot_model import G1_JOINT_NAMES, g1_mjcf_path
 
+from .balance import combined_com, convex_hull, support_margin
 from .ik import ComOverFeetTask, DescentResult, PelvisFloorTask, minimise
 
 #: lomanip_msgs/ErrorCode values used here.
@@ -302,6 +303,11 @@ class RetargetTarget:
     #: the scene's solids the robot must stay clear of (contacting limbs excepted, see
     #: ``_CONTACT_BODIES``); empty = no scene
     obstacles: tuple[Obstacle, ...] = ()
+    #: a point load (kg, world m; the object the hands hold up) the CoM task balances with the
+    #: robot, at ``balance_cost`` (the default 1 lets the contacts, 100-1000, win)
+    load_mass: float = 0.0
+    load_point: np.ndarray | None = None
+    balance_cost: float = 1.0
 
 
 @dataclass
@@ -634,6 +640,8 @@ class Retargeter:
             task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3(frames.matrix_to_quat(R)), p))
             tasks.append(task)
         if len(feet) == 2:   # balance over where the feet are (they may slide)
+            self.com_task.set_load(target.load_mass, target.load_point)
+            self.com_task.cost = np.full(2, float(target.balance_cost))
             tasks.append(self.com_task)
         if self._clearance_task is not None:
             tasks.append(self._clearance_task)
@@ -688,6 +696,19 @@ class Retargeter:
             c, s = np.cos(feet_pitch), np.sin(feet_pitch)
             R = R @ np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
         return R
+
+    def support_margin(self, sole_points: np.ndarray, load_mass: float = 0.0,
+                       load_point: np.ndarray | None = None) -> tuple[float, np.ndarray]:
+        """(signed margin m, outward normal) of the robot-and-load CoM in the current configuration's
+        support polygon: both feet's ``sole_points`` (in each foot site's body frame) projected on
+        the floor plane. See :func:`balance.support_margin`."""
+        data = self.configuration.data
+        corners = []
+        for foot in FEET:
+            body = int(self.model.site_bodyid[self.model.site(foot).id])
+            corners.append(data.xpos[body] + np.asarray(sole_points, float) @ data.xmat[body].reshape(3, 3).T)
+        com = combined_com(float(self.model.body_subtreemass[1]), data.subtree_com[1], load_mass, load_point)
+        return support_margin(com, convex_hull(np.concatenate(corners)))
 
     def _min_self_distance(self) -> float:
         """Smallest signed distance over the self-collision pairs (m) in the current configuration."""

@@ -135,6 +135,7 @@ class SubtaskKeyframe:
     reference_object_id: str = ""
     retarget: object | None = None       # the RetargetResult (residuals, limits, timing) it came from
     push_feet: list = field(default_factory=list)   # push: where the feet end (the object moved with them)
+    load_balance: object | None = None   # keyframes.LoadBalance of a keyframe whose hands hold a weight
 
 
 @dataclass
