@@ -169,13 +169,14 @@ def test_options_round_trip_the_rows_on_the_motion_between_knots(model, name, va
     assert getattr(conv.options_from_msg(TrajectoryOptions(**{name: -1.0})), name) == 0.0  # off
 
 
-def test_options_round_trip_lift_with_previous_segment(model):
+@pytest.mark.parametrize("name", ["lift_with_previous_segment", "load_in_double_support_margin"])
+def test_options_round_trip_the_switches(model, name):
     from lomanip_msgs.msg import TrajectoryOptions
     from lomanip_to.problem import Options
 
-    assert conv.options_from_msg(TrajectoryOptions()).lift_with_previous_segment is Options().lift_with_previous_segment is False
+    assert getattr(conv.options_from_msg(TrajectoryOptions()), name) is getattr(Options(), name) is False
     prob = load_problem("case_one_step", model=model)
-    prob.options = prob.options.replaced(lift_with_previous_segment=True)
+    prob.options = prob.options.replaced(**{name: True})
     req = conv.request_from_problem(prob, model.joint_names)
-    assert req.options.lift_with_previous_segment is True
-    assert conv.options_from_msg(req.options).lift_with_previous_segment is True
+    assert getattr(req.options, name) is True
+    assert getattr(conv.options_from_msg(req.options), name) is True

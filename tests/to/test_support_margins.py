@@ -161,3 +161,46 @@ def test_knees_stay_bent_after_the_first_phase(g1):
             assert np.all(lo < 0.3), (k, lo)  # the measured start stands on straight knees
         else:
             np.testing.assert_allclose(lo, 0.3)
+
+
+def test_double_stance_row_counts_the_carried_box_when_asked(g1):
+    """Options.load_in_double_support_margin: where the hands carry the box (free, held), the
+    double stance's CoM is the robot's and the box's together; elsewhere, and with the option off
+    (the default), the robot's alone."""
+    from lomanip_to.model import HANDS
+
+    def filled(on):
+        prob = load_problem("case_lift_box", model=g1)
+        prob.options = prob.options.replaced(load_in_double_support_margin=on)
+        data = ProblemData(prob, g1)
+        win, _ = solver.get_window(g1, data.structure)
+        return data, win, data.fill(win, 2.0, True, True, True)
+
+    off_data, off_win, (*_, Pm_off, W0) = filled(False)
+    data, win, (*_, Pm, _) = filled(True)
+    assert not off_data.structure.load_in_support and data.structure.load_in_support
+    row = win.G["CoM inside the double stance"]
+    g_on = ca.Function("g", [win.a, win.b, win.p], [win.g])
+    g_off = ca.Function("g", [off_win.a, off_win.b, off_win.p], [off_win.g])
+    j = data.midx["box"]
+    box_mass = load_problem("case_lift_box", model=g1).object("box").mass
+    carried = 0
+    for k in range(data.grid.K - 1):
+        if not all(data.contact(k, f) is not None for f in FEET):
+            continue
+        held = data.obj_mode(k, "box") == "free" and any(
+            (c := data.contact(k, h)) is not None and c.object_id == "box" for h in HANDS)
+        assert Pm[win.P[f"o{j}_held"], k] == float(held)
+        on = np.array(g_on(W0[:, k], W0[:, k + 1], Pm[:, k])).ravel()[row]
+        off = np.array(g_off(W0[:, k], W0[:, k + 1], Pm_off[:, k])).ravel()[off_win.G["CoM inside the double stance"]]
+        if not held:
+            np.testing.assert_allclose(on, off, atol=1e-12)
+            continue
+        carried += 1
+        com = W0[win.W["com"], k]
+        box = W0[win.W[f"o{j}_pose"], k][:3]
+        both = (g1.mass * com + box_mass * box) / (g1.mass + box_mass)
+        yaw = W0[win.W["x"], k][5]
+        head = np.array([np.cos(yaw), np.sin(yaw)])
+        np.testing.assert_allclose(on[0] - off[0], head @ (both - com)[:2], atol=1e-9)
+    assert carried >= 2

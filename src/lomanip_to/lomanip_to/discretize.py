@@ -227,7 +227,8 @@ class ProblemData:
         self.structure = Structure(len(self.moving), tuple(s for s, _ in self.pairs),
                                    self_pairs(model) if opt.self_collision else (),
                                    tuple(opt.inertial_torque_groups), opt.interval_momentum_tolerance > 0,
-                                   opt.upper_body_acceleration_limit > 0, len(self.env_pairs))
+                                   opt.upper_body_acceleration_limit > 0, len(self.env_pairs),
+                                   bool(opt.load_in_double_support_margin))
         for oid in self.moving:  # an object set down in mid-air is refused here, before any solve
             for k in range(self.grid.K):
                 self.support_under(k, oid)
@@ -1228,6 +1229,9 @@ class ProblemData:
         mode = self.obj_mode(k, oid)
         mass, I = self._lumped(k, oid)
         col[P[f"o{j}_m"]] = mass
+        if self.structure.load_in_support:   # carried: free in the phase and in a hand
+            col[P[f"o{j}_held"]] = float(mode == "free" and any(
+                (c := self.contact(k, h)) is not None and c.object_id == oid for h in HANDS))
         col[P[f"o{j}_I"]] = I.ravel(order="F")
         col[P[f"o{j}_corners"]] = o.bottom_corners().ravel()
         col[P[f"o{j}_axle"]] = np.asarray(o.rear_axle, float)

@@ -303,6 +303,12 @@ class Options:
     single_support_com_lateral: float | None = 0.08
     double_support_com_margin: float | None = 0.02
     max_cmp_offset: float = 0.005
+    #: the double-stance margin above counts the objects the hands carry (free in the phase, held
+    #: by a hand) with the robot: their weight, at arm's length, is what moves the centre of
+    #: pressure to the toes. Off by default (measured on S2 only, docs/to.md, session 34). Why: S2's
+    #: plan held the box with the robot's CoM 2 cm inside the soles and the feet's centre of
+    #: pressure on the force points' front edge; under physics it tipped onto its toes at the grasp
+    load_in_double_support_margin: bool = False
     #: rad: both knees at least this bent after the first phase (0 = the G1's limit). Why: with a
     #: stance knee at 0.17 rad the executed pelvis, 5 mm above its plan, could only be carried by
     #: lifting the heel; the foot rolled onto its toes and the robot fell backwards (docs/execution.md,

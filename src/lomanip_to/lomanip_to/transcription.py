@@ -102,6 +102,8 @@ class Structure:
     #: number of carried-object clearance pairs (a point sphere on a moving object against another
     #: object's primitive; discretize.ProblemData.env_pairs)
     env_pairs: int = 0
+    #: the double-stance CoM rows count the carried objects' weight (Options.load_in_double_support_margin)
+    load_in_support: bool = False
 
     def key(self) -> str:
         return hashlib.sha1(repr(self).encode()).hexdigest()[:12]
@@ -152,6 +154,8 @@ def par_layout(st: Structure) -> Layout:
         P.add(f"{h}_w_track", 1)
     for j in range(st.n_obj):
         P.add(f"o{j}_m", 1)
+        if st.load_in_support:
+            P.add(f"o{j}_held", 1)   # 1 where the hands carry it: counted in the support rows
         P.add(f"o{j}_I", 9)
         P.add(f"o{j}_corners", 12)
         P.add(f"o{j}_axle", 3)
@@ -541,7 +545,12 @@ class Window:
         # edges across; exact for parallel soles). Bounded only when Options ask for a margin
         head = ca.vertcat(ca.cos(wa["x"][5]), ca.sin(wa["x"][5]))
         sole_l, sole_r = limbs["left_foot"][0][0:2], limbs["right_foot"][0][0:2]
-        rel = wa["com"][0:2] - 0.5 * (sole_l + sole_r)
+        com_support = wa["com"]
+        if st.load_in_support:   # the robot and the objects its hands carry
+            held = [pp[f"o{j}_held"] * pp[f"o{j}_m"] for j in range(M)]
+            com_support = (mass * wa["com"] + sum((hj * objs_a[j][0] for j, hj in enumerate(held)), ca.DM.zeros(3))) \
+                / (mass + sum(held, 0))
+        rel = com_support[0:2] - 0.5 * (sole_l + sole_r)
         half_al = 0.5 * _soft_norm(ca.dot(sole_l - sole_r, head))
         half_ac = 0.5 * _soft_norm(ca.dot(sole_l - sole_r, lat))
         add("CoM inside the double stance", ca.vertcat(ca.dot(rel, head) + half_al, ca.dot(rel, head) - half_al,
