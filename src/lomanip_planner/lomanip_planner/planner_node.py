@@ -293,6 +293,12 @@ class PlannerNode(Node):
                                               name=self._scene.scenario)
         except (RetargetingError, ScheduleError, ProblemError) as exc:
             raise PlanFailed(getattr(exc, "code", ErrorCode.RETARGETING_INFEASIBLE), f"retargeting: {exc}") from exc
+        for kf in keyframes:
+            lb = kf.load_balance
+            if lb is not None:
+                log.info(f"keyframe {kf.index} ({kf.prompt!r}) holds {lb.mass:.1f} kg: balance margin "
+                         f"{lb.margin_before * 100:+.1f} -> {lb.margin_after * 100:+.1f} cm, feet stepped "
+                         f"{np.linalg.norm(lb.shift) * 100:.1f} cm")
         log.info(f"stance left {np.round(stance.left, 3).tolist()} right {np.round(stance.right, 3).tolist()}; "
                  f"schedule {problem.duration:.1f} s: " + ", ".join(
                      f"{ph.phase_type[0]}{ph.end - ph.start:.1f}" for ph in problem.phases))
