@@ -46,6 +46,11 @@ from .symmetry import best_grasp_match, rotate_about, stance_cost, stance_yaw, y
 LOAD_BALANCE_MARGIN: float | None = 0.02
 #: weight of the load-aware CoM task in those re-solves (the contacts weigh 100-1000)
 LOAD_BALANCE_COST = 100.0
+#: the re-solves also restart from the IK's seeds (True) or descend from the keyframe alone. On
+#: S2's place the restarts find the fixture-like squat (pelvis 0.58 m, +3.0 cm); from the keyframe
+#: alone it stays at 0.75 m with the hips back (+3.3 cm), and the pick is 0.9 s faster
+#: (docs/planner_s1.md, session 34). The S2 solves were measured with restarts.
+LOAD_BALANCE_RESTARTS = True
 #: IK re-solves at most: the first on the same feet, each next one stepping by the remaining
 #: shortfall (the body moves with the feet)
 LOAD_STANCE_STEPS = 4
@@ -320,7 +325,8 @@ def _balance_under_load(retargeter: Retargeter, st: SubtaskPerception, targets: 
         try:
             new = retargeter.solve(RetargetTarget(tuple(moved), base_orientation, st.joint_prior, floor_feet_slide=False,
                                                   pelvis_height_ratio=ratio, obstacles=obstacles, load_mass=load[0],
-                                                  load_point=load[1], balance_cost=LOAD_BALANCE_COST), res.qpos)
+                                                  load_point=load[1], balance_cost=LOAD_BALANCE_COST), res.qpos,
+                                   restarts=LOAD_BALANCE_RESTARTS)
         except RetargetingError:
             if k == 0 and floor_feet:
                 continue   # the same feet cannot balance it: step

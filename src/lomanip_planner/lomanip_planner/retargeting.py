@@ -493,12 +493,14 @@ class Retargeter:
             self._clearance_task = ObjectClearanceTask(proximity, OBJECT_CLEARANCE, OBJECT_CLEARANCE_COST)
 
     # ------------------------------------------------------------------------------------------
-    def solve(self, target: RetargetTarget, initial_qpos: np.ndarray | None = None) -> RetargetResult:
+    def solve(self, target: RetargetTarget, initial_qpos: np.ndarray | None = None,
+              restarts: bool = True) -> RetargetResult:
         """A keyframe meeting ``target``; raises :class:`RetargetingError` if none is found.
 
         Differential IK is local: when the first start (``initial_qpos``, else standing over the
         feet) misses a contact, it restarts from a squat and from an arms-up posture and keeps the
-        best solution.
+        best solution. ``restarts`` False descends from ``initial_qpos`` alone (a keyframe refined
+        from a solution it is near).
         """
         t0 = time.perf_counter()
         targets = self._check(target)
@@ -508,9 +510,10 @@ class Retargeter:
         self._set_obstacles(target.obstacles, targets)
         base_R = self._base_rotation(target, feet)
         starts = [] if initial_qpos is None else [_finite(initial_qpos, 36, "initial_qpos")]
-        starts += [self._seed(name, feet, base_R) for name in ("stand", "squat", "reach_up")]
+        if restarts or not starts:
+            starts += [self._seed(name, feet, base_R) for name in ("stand", "squat", "reach_up")]
         hands = [t.position for t in targets.values() if t.limb in HANDS]
-        if self._sliding and hands:   # feet may move: also start in front of the hands' targets
+        if self._sliding and hands and (restarts or not starts):   # feet may move: also start in front of the hands' targets
             hands_mid = np.mean(hands, axis=0)
             for name, reach in _FRONT_SEEDS:
                 q = self._seed(name, feet, base_R)
