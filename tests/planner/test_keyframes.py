@@ -124,3 +124,19 @@ def test_a_pick_at_arms_length_balances_the_load_over_the_feet(monkeypatch):
     feet = [c.position for c in kf.contacts if c.limb.endswith("foot")]
     np.testing.assert_allclose([p[:2] for p in feet], [[0.0, 0.12], [0.0, -0.12]] + kf.load_balance.shift, atol=1e-9)
     assert [p[2] for p in feet] == [0.0, 0.0]
+
+
+def test_feet_on_a_top_step_only_as_far_as_their_soles_stay_on_it():
+    from lomanip_planner.keyframes import TOP_EDGE_MARGIN, _step_room
+    from lomanip_to.model import SOLE_CORNERS
+    from lomanip_to.route import Footprint
+
+    retargeter = Retargeter()
+    retargeter.configuration.update(retargeter.stand)   # level feet, ankles at x = 0
+    ankle_x = retargeter.configuration.data.xpos[retargeter.model.body("left_ankle_roll_link").id][0]
+    toe = ankle_x + SOLE_CORNERS[:, 0].max()
+    top = Footprint((0.05, 0.0), 0.0, (0.2, 0.2), "crate")
+    assert _step_room(retargeter, np.array([0.3, 0.0, 0.0]), None) == 1.0
+    assert _step_room(retargeter, np.array([0.3, 0.0, 0.0]), top) == pytest.approx((0.25 - TOP_EDGE_MARGIN - toe) / 0.3)
+    assert _step_room(retargeter, np.array([0.01, 0.0, 0.0]), top) == 1.0
+    assert _step_room(retargeter, np.array([0.1, 0.0, 0.0]), Footprint((0.3, 0.0), 0.0, (0.2, 0.2), "crate")) == 0.0

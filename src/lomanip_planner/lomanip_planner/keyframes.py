@@ -56,6 +56,9 @@ LOAD_BALANCE_RESTARTS = True
 LOAD_STANCE_STEPS = 4
 #: longest total step of the feet towards a load (m)
 LOAD_STANCE_MAX_SHIFT = 0.25
+#: feet that stand on an object's top step towards a load only as far as their soles stay this far
+#: inside its edges (m)
+TOP_EDGE_MARGIN = 0.01
 
 
 @dataclass(frozen=True)
@@ -300,40 +303,93 @@ def _hand_load(actions: list[str], targets: list[LimbTarget], by_id: dict[str, S
     return (mass, np.mean([t.position for t in hands], axis=0)) if mass > 0.0 else None
 
 
+def _feet_top(targets: list[LimbTarget], by_id: dict[str, SceneObject], moved: dict[str, "_Displacement"]):
+    """The footprint (route.Footprint, where the plan has the object) of the one object both feet
+    stand on; None on the floor, on two surfaces or on an unknown object."""
+    surfaces = {t.object_id or FLOOR for t in targets if t.limb in FEET}
+    if len(surfaces) != 1 or surfaces == {FLOOR} or next(iter(surfaces)) not in by_id:
+        return None
+    oid = next(iter(surfaces))
+    o = _as_placed(by_id[oid], moved.get(oid))
+    return footprint_of(o, o.position, o.rpy())
+
+
+def _step_room(retargeter: Retargeter, step: np.ndarray, top) -> float:
+    """The largest fraction (0-1) of ``step`` both feet can take, from the retargeter's current
+    configuration, with their soles ``TOP_EDGE_MARGIN`` inside ``top`` (a route.Footprint: the top
+    they stand on; None for the floor, which does not limit them)."""
+    if top is None:
+        return 1.0
+    from lomanip_to.model import SOLE_CORNERS
+
+    data = retargeter.configuration.data
+    c, s = np.cos(top.yaw), np.sin(top.yaw)
+    R = np.array([[c, -s], [s, c]])
+    half = np.asarray(top.half, float) - TOP_EDGE_MARGIN
+    d = R.T @ np.asarray(step, float)[:2]
+    room = 1.0
+    for foot in FEET:
+        body = int(retargeter.model.site_bodyid[retargeter.model.site(foot).id])
+        corners = data.xpos[body] + SOLE_CORNERS @ data.xmat[body].reshape(3, 3).T
+        for p in (corners[:, :2] - np.asarray(top.centre, float)) @ R:   # rows: R^T (corner - centre)
+            if np.any(np.abs(p) > half + 1e-9):
+                return 0.0   # already past the margin: no step
+            for i in range(2):
+                if abs(d[i]) > 1e-12:
+                    room = min(room, ((half[i] if d[i] > 0 else -half[i]) - p[i]) / d[i])
+    return max(room, 0.0)
+
+
 def _balance_under_load(retargeter: Retargeter, st: SubtaskPerception, targets: list[LimbTarget], res,
                         base_orientation, ratio: float | None, obstacles: tuple[Obstacle, ...],
-                        load: tuple[float, np.ndarray]) -> tuple[object, list[LimbTarget], LoadBalance]:
+                        load: tuple[float, np.ndarray], top=None) -> tuple[object, list[LimbTarget], LoadBalance]:
     """The keyframe, balanced with its load: when the robot-and-load CoM is less than
     ``LOAD_BALANCE_MARGIN`` inside the soles, the IK is solved again with the load in its CoM task
     (at ``LOAD_BALANCE_COST``), first on the same feet, then with the floor feet stepped towards
     the load by the remaining shortfall (at most ``LOAD_STANCE_STEPS`` solves and
-    ``LOAD_STANCE_MAX_SHIFT``). A solve the IK cannot finish, or one that does not raise the
-    margin, ends the search with the best keyframe so far. Feet on an object stay where they are."""
+    ``LOAD_STANCE_MAX_SHIFT``); a stepped solve the load-aware task keeps from its contacts is
+    tried once more with the usual CoM task. A solve the IK cannot finish, or one that does not
+    raise the margin, ends the search with the best keyframe so far. Feet on an object's top (``top``, a
+    route.Footprint) step only as far as their soles stay on it (:func:`_step_room`)."""
     from lomanip_to.model import SOLE_FORCE_POINTS
 
     t0, spent = time.perf_counter(), res.seconds
     margin, normal = retargeter.support_margin(SOLE_FORCE_POINTS, *load)
     first, total = margin, np.zeros(2)
-    floor_feet = sum(t.limb in FEET for t in targets) == 2 and \
-        all(t.object_id in ("", FLOOR) for t in targets if t.limb in FEET)
+    surfaces = {t.object_id or FLOOR for t in targets if t.limb in FEET}
+    can_step = sum(t.limb in FEET for t in targets) == 2 and len(surfaces) == 1 and \
+        (surfaces == {FLOOR} or top is not None)
     for k in range(LOAD_STANCE_STEPS if LOAD_BALANCE_MARGIN is not None else 0):
         deficit = LOAD_BALANCE_MARGIN - margin
-        if deficit <= 1e-3 or (k > 0 and not floor_feet) or np.linalg.norm(total + deficit * normal) > LOAD_STANCE_MAX_SHIFT:
+        if deficit <= 1e-3 or (k > 0 and not can_step) or np.linalg.norm(total + deficit * normal) > LOAD_STANCE_MAX_SHIFT:
             break
-        step = np.zeros(3) if k == 0 else np.array([*(deficit * normal), 0.0])
+        step = np.zeros(3)
+        if k > 0:
+            retargeter.configuration.update(res.qpos)
+            step = np.array([*(deficit * normal), 0.0])
+            step *= _step_room(retargeter, step, top)
+            if np.linalg.norm(step) < 1e-3:
+                break
         moved = [replace(t, position=t.position + step) if t.limb in FEET else t for t in targets]
-        try:
-            new = retargeter.solve(RetargetTarget(tuple(moved), base_orientation, st.joint_prior, floor_feet_slide=False,
-                                                  pelvis_height_ratio=ratio, obstacles=obstacles, load_mass=load[0],
-                                                  load_point=load[1], balance_cost=LOAD_BALANCE_COST), res.qpos,
-                                   restarts=LOAD_BALANCE_RESTARTS)
-        except RetargetingError:
-            if k == 0 and floor_feet:
+        new = None
+        # the load-aware CoM task first; on stepped feet, if its weight keeps a hand from its
+        # contact, the usual CoM task (S1's one-handed reach from the box top to the shelf)
+        for mass, cost in ((load[0], LOAD_BALANCE_COST),) + (((0.0, 1.0),) if k > 0 else ()):
+            try:
+                new = retargeter.solve(RetargetTarget(tuple(moved), base_orientation, st.joint_prior,
+                                                      floor_feet_slide=False, pelvis_height_ratio=ratio,
+                                                      obstacles=obstacles, load_mass=mass, load_point=load[1],
+                                                      balance_cost=cost), res.qpos, restarts=LOAD_BALANCE_RESTARTS)
+                break
+            except RetargetingError:
+                continue
+        if new is None:
+            if k == 0 and can_step:
                 continue   # the same feet cannot balance it: step
             break
         new_margin, new_normal = retargeter.support_margin(SOLE_FORCE_POINTS, *load)
         if new_margin <= margin:
-            if k == 0 and floor_feet:
+            if k == 0 and can_step:
                 continue
             break
         res, targets, margin, normal, total = new, moved, new_margin, new_normal, total + step[:2]
@@ -403,7 +459,7 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
         balance = None
         if load is not None:
             res, targets, balance = _balance_under_load(retargeter, st, targets, res, base_orientation, ratio,
-                                                        obstacles, load)
+                                                        obstacles, load, _feet_top(targets, by_id, moved))
         for t in targets:
             if t.limb in FEET:
                 feet_now[t.limb] = (t.position.copy(), t.object_id)
