@@ -20,6 +20,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -64,10 +65,16 @@ def run_case(task: dict, overrides: dict, solve: bool, variants: list[str], max_
         row["error"] = f"{type(exc).__name__}: {exc}"
         return row
     row["timings"] = dict(plan.timings)
-    rs = [kf.retarget for kf in plan.keyframes]
-    row["keyframes"] = [{"max_residual_m": max(r.residuals.values()), "within_limits": r.within_joint_limits,
-                         "min_self_distance_m": r.min_self_distance, "max_foot_tilt_rad": max(r.foot_tilt.values()),
-                         "ik_s": r.seconds} for r in rs]
+    row["keyframes"] = []
+    for kf in plan.keyframes:
+        r, lb = kf.retarget, kf.load_balance
+        row["keyframes"].append({
+            "max_residual_m": max(r.residuals.values()), "within_limits": r.within_joint_limits,
+            "min_self_distance_m": r.min_self_distance, "max_foot_tilt_rad": max(r.foot_tilt.values()),
+            "ik_s": r.seconds,
+            # the robot-and-load CoM inside the soles (m) of a keyframe whose hands hold a weight
+            "load_margin_m": None if lb is None else [lb.margin_before, lb.margin_after],
+            "feet_step_m": None if lb is None else float(np.linalg.norm(lb.shift))})
     row["duration_s"] = plan.problem.duration
     row["phases"] = len(plan.problem.phases)
     if solve:
@@ -125,6 +132,13 @@ def main() -> int:
               f"joint limits held in {sum(k['within_limits'] for k in kfs)}/{len(kfs)}; self-collision-free in "
               f"{sum(k['min_self_distance_m'] >= 0 for k in kfs)}/{len(kfs)}; worst foot tilt "
               f"{max(k['max_foot_tilt_rad'] for k in kfs):.3f} rad")
+        loads = [k for k in kfs if k["load_margin_m"] is not None]
+        if loads:
+            after = [k["load_margin_m"][1] for k in loads]
+            print(f"  keyframes holding a weight: {len(loads)}; robot-and-load CoM inside the soles: worst "
+                  f"{min(k['load_margin_m'][0] for k in loads) * 100:+.1f} cm before, {min(after) * 100:+.1f} cm after "
+                  f"(>= 2 cm in {sum(a >= 0.02 - 1e-3 for a in after)}); feet stepped in "
+                  f"{sum(k['feet_step_m'] > 1e-3 for k in loads)}, at most {max(k['feet_step_m'] for k in loads) * 100:.1f} cm")
         print(f"  IK time per keyframe: median {statistics.median(k['ik_s'] for k in kfs):.2f} s, "
               f"max {max(k['ik_s'] for k in kfs):.2f} s")
         print(f"  perception per case: median {statistics.median(r['timings']['perception'] for r in ok):.1f} s")
