@@ -134,10 +134,13 @@ def main() -> int:
               f"{max(k['max_foot_tilt_rad'] for k in kfs):.3f} rad")
         loads = [k for k in kfs if k["load_margin_m"] is not None]
         if loads:
+            from lomanip_planner.keyframes import LOAD_BALANCE_MARGIN
+
+            need = LOAD_BALANCE_MARGIN or 0.0
             after = [k["load_margin_m"][1] for k in loads]
             print(f"  keyframes holding a weight: {len(loads)}; robot-and-load CoM inside the soles: worst "
                   f"{min(k['load_margin_m'][0] for k in loads) * 100:+.1f} cm before, {min(after) * 100:+.1f} cm after "
-                  f"(>= 2 cm in {sum(a >= 0.02 - 1e-3 for a in after)}); feet stepped in "
+                  f"(>= {need * 100:.0f} cm in {sum(a >= need - 1e-3 for a in after)}); feet stepped in "
                   f"{sum(k['feet_step_m'] > 1e-3 for k in loads)}, at most {max(k['feet_step_m'] for k in loads) * 100:.1f} cm")
         print(f"  IK time per keyframe: median {statistics.median(k['ik_s'] for k in kfs):.2f} s, "
               f"max {max(k['ik_s'] for k in kfs):.2f} s")

@@ -21,6 +21,8 @@ import mujoco
 import numpy as np
 import qpsolvers
 
+from .balance import combined_com
+
 
 class ComOverFeetTask(mink.Task):
     """Horizontal CoM over the midpoint of two foot sites, where the feet are now.
@@ -42,21 +44,19 @@ class ComOverFeetTask(mink.Task):
         self.load_mass = max(float(mass), 0.0)
         self.load_point = np.zeros(3) if point is None else np.asarray(point, float).copy()
 
-    def _robot_share(self, model: mujoco.MjModel) -> float:
-        robot = float(model.body_subtreemass[1])
-        return robot / (robot + self.load_mass)
 
     def compute_error(self, configuration: mink.Configuration) -> np.ndarray:
         mid = np.mean([configuration.data.site(f).xpos for f in self.feet], axis=0)
-        share = self._robot_share(configuration.model)
-        com = share * configuration.data.subtree_com[1] + (1.0 - share) * self.load_point
+        com = combined_com(float(configuration.model.body_subtreemass[1]), configuration.data.subtree_com[1],
+                           self.load_mass, self.load_point)
         return com[:2] - mid[:2]
 
     def compute_jacobian(self, configuration: mink.Configuration) -> np.ndarray:
         model, data = configuration.model, configuration.data
         jac = np.zeros((3, model.nv))
         mujoco.mj_jacSubtreeCom(model, data, jac, 1)
-        jac *= self._robot_share(model)
+        robot = float(model.body_subtreemass[1])
+        jac *= robot / (robot + self.load_mass)   # the load does not move with q
         for f in self.feet:
             jac_site = np.zeros((3, model.nv))
             mujoco.mj_jacSite(model, data, jac_site, None, model.site(f).id)

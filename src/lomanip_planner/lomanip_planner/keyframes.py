@@ -10,8 +10,9 @@ pose (pelvis orientation after the rigid transfer, joint angles mapped onto the 
 * the human pelvis orientation and joint angles go into the IK as base orientation and posture prior;
 * a keyframe whose hands take up (pick) or hold (place) an object must balance the object's
   weight too: when the robot-and-object CoM is not ``LOAD_BALANCE_MARGIN`` inside the soles, the
-  floor feet step towards the load and the IK is solved again (:func:`_balance_under_load`; a
-  departure from the paper, which takes the feet from the person's stance);
+  IK is solved again with the load in its CoM task and, if needed, the feet step towards the load
+  (on an object's top only as far as they stay on it; :func:`_balance_under_load`, a departure
+  from the paper, which takes the feet from the person's stance);
 * the desired mid-foot position of eq. (2) is the keyframe's mid-foot point, referred to the object
   the hands touch;
 * perception sees every object where it is now, but earlier subtasks may move it: a subtask whose
@@ -322,21 +323,18 @@ def _step_room(retargeter: Retargeter, step: np.ndarray, top) -> float:
         return 1.0
     from lomanip_to.model import SOLE_CORNERS
 
-    data = retargeter.configuration.data
     c, s = np.cos(top.yaw), np.sin(top.yaw)
     R = np.array([[c, -s], [s, c]])
     half = np.asarray(top.half, float) - TOP_EDGE_MARGIN
     d = R.T @ np.asarray(step, float)[:2]
     room = 1.0
-    for foot in FEET:
-        body = int(retargeter.model.site_bodyid[retargeter.model.site(foot).id])
-        corners = data.xpos[body] + SOLE_CORNERS @ data.xmat[body].reshape(3, 3).T
-        for p in (corners[:, :2] - np.asarray(top.centre, float)) @ R:   # rows: R^T (corner - centre)
-            if np.any(np.abs(p) > half + 1e-9):
-                return 0.0   # already past the margin: no step
-            for i in range(2):
-                if abs(d[i]) > 1e-12:
-                    room = min(room, ((half[i] if d[i] > 0 else -half[i]) - p[i]) / d[i])
+    corners = retargeter.sole_points(SOLE_CORNERS)[:, :2]
+    for p in (corners - np.asarray(top.centre, float)) @ R:   # rows: R^T (corner - centre)
+        if np.any(np.abs(p) > half + 1e-9):
+            return 0.0   # already past the margin: no step
+        for i in range(2):
+            if abs(d[i]) > 1e-12:
+                room = min(room, ((half[i] if d[i] > 0 else -half[i]) - p[i]) / d[i])
     return max(room, 0.0)
 
 
@@ -356,9 +354,8 @@ def _balance_under_load(retargeter: Retargeter, st: SubtaskPerception, targets: 
     t0, spent = time.perf_counter(), res.seconds
     margin, normal = retargeter.support_margin(SOLE_FORCE_POINTS, *load)
     first, total = margin, np.zeros(2)
-    surfaces = {t.object_id or FLOOR for t in targets if t.limb in FEET}
-    can_step = sum(t.limb in FEET for t in targets) == 2 and len(surfaces) == 1 and \
-        (surfaces == {FLOOR} or top is not None)
+    feet_on = {t.object_id or FLOOR for t in targets if t.limb in FEET}
+    can_step = sum(t.limb in FEET for t in targets) == 2 and (feet_on == {FLOOR} or top is not None)
     for k in range(LOAD_STANCE_STEPS if LOAD_BALANCE_MARGIN is not None else 0):
         deficit = LOAD_BALANCE_MARGIN - margin
         if deficit <= 1e-3 or (k > 0 and not can_step) or np.linalg.norm(total + deficit * normal) > LOAD_STANCE_MAX_SHIFT:
@@ -473,7 +470,7 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
                 held_now.add(oid)
         placement = next((placements[oid] for oid in hand_objects if oid in placements), None)
         push_feet = []
-        if "push" in actions_of(st.prompt) and hand_objects:
+        if "push" in actions and hand_objects:
             pushed = by_id[hand_objects[0]]
             if pushed.id not in placements:   # default: straight ahead along the object's heading
                 placement = push_goal(pushed, moved.get(pushed.id), push_distance)

@@ -510,10 +510,11 @@ class Retargeter:
         self._set_obstacles(target.obstacles, targets)
         base_R = self._base_rotation(target, feet)
         starts = [] if initial_qpos is None else [_finite(initial_qpos, 36, "initial_qpos")]
-        if restarts or not starts:
+        seeded = restarts or initial_qpos is None
+        if seeded:
             starts += [self._seed(name, feet, base_R) for name in ("stand", "squat", "reach_up")]
         hands = [t.position for t in targets.values() if t.limb in HANDS]
-        if self._sliding and hands and (restarts or not starts):   # feet may move: also start in front of the hands' targets
+        if seeded and self._sliding and hands:   # feet may move: also start in front of the hands' targets
             hands_mid = np.mean(hands, axis=0)
             for name, reach in _FRONT_SEEDS:
                 q = self._seed(name, feet, base_R)
@@ -700,18 +701,24 @@ class Retargeter:
             R = R @ np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
         return R
 
+    def sole_points(self, points: np.ndarray) -> np.ndarray:
+        """``points`` (N x 3, in the foot site's body frame: the ankle-roll link) of both feet in the
+        world at the current configuration, left foot's first (2N x 3)."""
+        data = self.configuration.data
+        world = []
+        for foot in FEET:
+            body = int(self.model.site_bodyid[self.model.site(foot).id])
+            world.append(data.xpos[body] + np.asarray(points, float) @ data.xmat[body].reshape(3, 3).T)
+        return np.concatenate(world)
+
     def support_margin(self, sole_points: np.ndarray, load_mass: float = 0.0,
                        load_point: np.ndarray | None = None) -> tuple[float, np.ndarray]:
         """(signed margin m, outward normal) of the robot-and-load CoM in the current configuration's
-        support polygon: both feet's ``sole_points`` (in each foot site's body frame) projected on
-        the floor plane. See :func:`balance.support_margin`."""
+        support polygon: both feet's ``sole_points`` (:meth:`sole_points`) projected on the floor
+        plane. See :func:`balance.support_margin`."""
         data = self.configuration.data
-        corners = []
-        for foot in FEET:
-            body = int(self.model.site_bodyid[self.model.site(foot).id])
-            corners.append(data.xpos[body] + np.asarray(sole_points, float) @ data.xmat[body].reshape(3, 3).T)
         com = combined_com(float(self.model.body_subtreemass[1]), data.subtree_com[1], load_mass, load_point)
-        return support_margin(com, convex_hull(np.concatenate(corners)))
+        return support_margin(com, convex_hull(self.sole_points(sole_points)))
 
     def _min_self_distance(self) -> float:
         """Smallest signed distance over the self-collision pairs (m) in the current configuration."""
