@@ -91,6 +91,11 @@ SEED_BACKOFF_MAX = 0.6
 #: where unused obstacle geoms wait (far below the floor, outside every pair anyway)
 _PARKED = (0.0, 0.0, -100.0)
 
+#: a descent stops when this many steps lower its cost by less than IK_STALL_TOLERANCE of it
+#: (``ik.minimise``); 0 descends to the iteration cap. The tail it cuts moved the cost by under 1 %
+IK_STALL_WINDOW = 10
+IK_STALL_TOLERANCE = 1e-3
+
 #: weight of the pelvis height prior (hands 100-1000, feet 1000, base orientation 5, posture 0.01)
 PELVIS_HEIGHT_COST = 3.0
 #: more than this fraction of the leg above the person's pelvis height the pelvis is pulled down
@@ -650,7 +655,8 @@ class Retargeter:
         if self._clearance_task is not None:
             tasks.append(self._clearance_task)
         outcome = minimise(self.configuration, tasks, self._limits, solver=self.solver,
-                           max_iterations=max_iterations)
+                           max_iterations=max_iterations, stall_window=IK_STALL_WINDOW,
+                           stall_tolerance=IK_STALL_TOLERANCE)
         return self.configuration.q.copy(), outcome
 
     @staticmethod
