@@ -133,9 +133,12 @@ def run_case(model, scenario: str, over: dict, variant: str, out: Path, time_lim
 
 def convergence_kind(converged: bool, status: str) -> str:
     """'optimal' (ipopt's tolerance or acceptable test), 'stalled' (the stall acceptance:
-    feasible, objective flat; solver.STALLED_STATUS) or 'no'."""
+    feasible, objective flat; solver.STALLED_STATUS), 'capped' (a feasible iterate at the
+    iteration cap; solver.CAPPED_FEASIBLE_STATUS) or 'no'."""
     if not converged:
         return "no"
+    if solver.CAPPED_FEASIBLE_STATUS in status:
+        return "capped"
     return "stalled" if solver.STALLED_STATUS in status else "optimal"
 
 

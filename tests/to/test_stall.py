@@ -85,3 +85,29 @@ def test_far_infeasible_low_objectives_do_not_count_as_progress():
     run, fn = _sink()
     vals = [(884.0, 1e-6)] + [(10.0, 0.5)] * 12  # violation 5000 x constr_tol: not nearly feasible
     assert _feed(fn, vals) == 5 and run.stalled
+
+
+def _capped(case: str, g1, **options):
+    from dataclasses import replace
+
+    from lomanip_to.fixtures import load_problem
+
+    prob = load_problem(case, model=g1)
+    return solver.solve(replace(prob, options=replace(prob.options, max_iterations=3, **options)), g1)
+
+
+def test_a_feasible_iterate_at_the_iteration_cap_is_returned_as_such(g1):
+    """Standing still is feasible from its first iterates: at a 3-iteration cap the final stage hands
+    back its best feasible iterate, named as capped, not as optimal; switched off, the cap fails."""
+    res = _capped("case_stand", g1)
+    assert res.stats.converged and res.stats.status == solver.CAPPED_FEASIBLE_STATUS
+    assert res.stats.max_constraint_violation.value <= res.data.prob.options.constr_tol
+    assert "iteration cap" in res.stats.status_message()
+    off = _capped("case_stand", g1, accept_feasible_at_cap=False)
+    assert not off.stats.converged and off.stats.status == "Maximum_Iterations_Exceeded"
+
+
+def test_an_infeasible_iterate_at_the_iteration_cap_still_fails(g1):
+    res = _capped("case_one_step", g1)   # a step is not feasible after 3 iterations
+    assert not res.stats.converged and not res.success
+    assert res.stats.status == "Maximum_Iterations_Exceeded"

@@ -251,6 +251,13 @@ class Options:
     #: ("Feasible_Objective_Stalled").  Not a KKT certificate (docs/to.md); 0 switches it off.
     stall_iterations: int = 30
     stall_rtol: float = 1e-2
+    #: a final stage that reaches max_iterations with a feasible iterate (violation within
+    #: constr_tol; tracked only while stall_iterations > 0) returns its best feasible iterate
+    #: ("Feasible_At_Iteration_Cap") instead of failing.  Why: S1's first subtask from prompts
+    #: ended at the cap on a feasible iterate (violation 5e-6, objective still falling) and the
+    #: whole plan failed there (session 34).  Not a KKT certificate, like the stall; the physical
+    #: checks still decide success.  False: the cap fails the stage, as before session 35
+    accept_feasible_at_cap: bool = True
     #: Hessian ipopt gets in the homotopy guide stage and in the final stage: "exact" (Lagrangian)
     #: or "cost" (the cost's Hessian only, constraint curvature dropped; see assembly)
     guide_hessian: str = "exact"

@@ -25,6 +25,9 @@ from .model import rot_to_quat_xyzw, rpy_rate_matrix, rpy_to_rot
 #: while the objective crept from 73.15 to 73.00 in 150 iterations at violation <= 5e-6, so neither
 #: its tolerance nor its acceptable test (10 acceptable iterations in a row) was ever met.
 STALLED_STATUS = "Feasible_Objective_Stalled"
+#: status of a final stage that reached its iteration cap on a feasible iterate and returned the best
+#: one (Options.accept_feasible_at_cap)
+CAPPED_FEASIBLE_STATUS = "Feasible_At_Iteration_Cap"
 
 
 @dataclass
@@ -81,6 +84,8 @@ class SolverStats:
             how = "converged"
             if STALLED_STATUS in self.status:
                 how = "converged to a feasible point whose objective stalled (ipopt's optimality test not met)"
+            if CAPPED_FEASIBLE_STATUS in self.status:
+                how = "stopped at the iteration cap on a feasible point (ipopt's optimality test not met)"
             return f"{how} in {self.iterations} iterations; max constraint violation " \
                    f"{self.max_constraint_violation.text()}; {pen}"
         return (f"did not converge in {self.iterations} iterations ({self.status}); max constraint violation "

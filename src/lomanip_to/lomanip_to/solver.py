@@ -25,7 +25,7 @@ from .checks import penetration_per_knot, run_checks
 from .discretize import ProblemData, _lifts
 from .model import FEET, HANDS, LIMBS, SOLE_FORCE_POINTS, G1Model, rpy_to_rot
 from .problem import TO_NOT_CONVERGED, WALKING, Problem, validate_problem
-from .result import STALLED_STATUS, Progress, SolverStats, TOResult, Violation
+from .result import CAPPED_FEASIBLE_STATUS, STALLED_STATUS, Progress, SolverStats, TOResult, Violation
 from .transcription import Window
 
 _WINDOWS: dict = {}
@@ -298,8 +298,12 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
         dt = time.perf_counter() - t0
         st = s.stats()
         status = st.get("return_status", "")
+        feasible_best = run.best is not None and run.best[1] is not None
         if run.stalled:
             status = STALLED_STATUS
+        elif last_stage and status == "Maximum_Iterations_Exceeded" and feasible_best \
+                and opt.accept_feasible_at_cap and not run.timed_out:
+            status = CAPPED_FEASIBLE_STATUS
         warm_ok = _converged(status)
         reg = np.asarray(st.get("iterations", {}).get("regularization_size", []), float)
         start = "warm" if tag == "warm" else ("cold" if z0 is not None else "keyframes")
@@ -310,7 +314,7 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
         lam_x = np.array(sol["lam_x"]).ravel()
         lam_g = np.array(sol["lam_g"]).ravel()
         f_sol = float(sol["f"])
-        if run.stalled and run.best is not None and run.best[1] is not None:
+        if status in (STALLED_STATUS, CAPPED_FEASIBLE_STATUS) and feasible_best:
             f_sol, z0, lam_x, lam_g = run.best  # the best feasible iterate, not ipopt's last one
         lam_g = _scatter(lam_g, rows, nlp.ngg)  # multipliers of the switched-off rows are 0
         if run.timed_out:
@@ -372,7 +376,8 @@ def _timing_split(st: dict, wall: float) -> dict:
 
 
 def _converged(status: str) -> bool:
-    return status in ("Solve_Succeeded", "Solved_To_Acceptable_Level") or status.startswith(STALLED_STATUS)
+    return status in ("Solve_Succeeded", "Solved_To_Acceptable_Level") or status.startswith(STALLED_STATUS) \
+        or status.startswith(CAPPED_FEASIBLE_STATUS)
 
 
 def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progress=None) -> TOResult:
@@ -420,8 +425,9 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
             poses = _poses_at_end(win, sd, Wm, poses)
             grips = _grips_at_end(win, sd, res[6])
         if converged:
-            stalled = [st["stage"].strip() for st in run.stages if st["status"] == STALLED_STATUS]
-            status = f"{STALLED_STATUS} ({'; '.join(stalled)})" if stalled else "Solve_Succeeded"
+            status = "; ".join(f"{kind} ({', '.join(names)})" for kind in (STALLED_STATUS, CAPPED_FEASIBLE_STATUS)
+                               if (names := [st["stage"].strip() for st in run.stages if st["status"] == kind])) \
+                or "Solve_Succeeded"
             z_st, lam_st = _stitch(win, data, parts)
             Zm = z_st.reshape(data.grid.K + 1, win.W.n)
             data.use_solved_support_poses({oid: Zm[:data.grid.K, win.W[f"o{j}_pose"]] for oid, j in data.midx.items()})
