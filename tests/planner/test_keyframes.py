@@ -140,3 +140,21 @@ def test_feet_on_a_top_step_only_as_far_as_their_soles_stay_on_it():
     assert _step_room(retargeter, np.array([0.3, 0.0, 0.0]), top) == pytest.approx((0.25 - TOP_EDGE_MARGIN - toe) / 0.3)
     assert _step_room(retargeter, np.array([0.01, 0.0, 0.0]), top) == 1.0
     assert _step_room(retargeter, np.array([0.1, 0.0, 0.0]), Footprint((0.3, 0.0), 0.0, (0.2, 0.2), "crate")) == 0.0
+
+
+def test_a_picked_squeeze_is_antipodal_through_the_com_and_the_place_keeps_it():
+    """The transferred hands 9 cm apart along the box's faces and 4 cm apart in height become one
+    grasp line through the box's CoM, level at their mean height; the place holds the box the same way."""
+    perceived = _s1_perception()[:2]
+    n = lambda *v: np.array(v, float)  # noqa: E731
+    for st in perceived:
+        st.contacts[2] = LimbTarget("left_hand", n(0.65, 0.2, 0.24), n(0, 1, 0), "box")
+        st.contacts[3] = LimbTarget("right_hand", n(0.74, -0.2, 0.20), n(0, -1, 0), "box")
+    stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+    placements = {"box": PlacementGoal("box", (1.48, 1.0, 0.15), 0.0)}
+    kfs = retarget_subtasks(perceived, OBJECTS, stance, Retargeter(), placements)
+    for kf, centre in zip(kfs, ((0.70, 0.0, 0.15), (1.48, 1.0, 0.15))):
+        hands = {c.limb: c.position - np.asarray(centre) for c in kf.contacts if c.limb.endswith("hand")}
+        np.testing.assert_allclose(hands["left_hand"], (0.0, 0.2, 0.07), atol=1e-9)
+        np.testing.assert_allclose(hands["right_hand"], (0.0, -0.2, 0.07), atol=1e-9)
+        assert max(kf.retarget.residuals.values()) <= 0.01

@@ -6,7 +6,8 @@ pose (pelvis orientation after the rigid transfer, joint angles mapped onto the 
 * foot targets: the transferred xy of each foot; the height is set by the task, i.e. by the
   surface the foot stands on (the floor, or the top of the object it touches, as in S1's box);
   a foot without a contact keeps its current position;
-* hand targets: the transferred points and normals;
+* hand targets: the transferred points and normals; a two-handed squeeze picked up is made
+  antipodal through the object's CoM (grasp.py, a departure from the paper; the place keeps it);
 * the human pelvis orientation and joint angles go into the IK as base orientation and posture prior;
 * a keyframe whose hands take up (pick) or hold (place) an object must balance the object's
   weight too: when the robot-and-object CoM is not ``LOAD_BALANCE_MARGIN`` inside the soles, the
@@ -33,6 +34,7 @@ from lomanip_to.problem import FLOOR, Options, PlacementGoal, Problem, SceneObje
 
 from lomanip_to.route import footprint_of
 
+from .grasp import antipodal_squeeze
 from .retargeting import FEET, HANDS, LimbTarget, Obstacle, RetargetTarget, Retargeter, RetargetingError
 from .schedule import Schedule, actions_of, Stance, SubtaskKeyframe, Timing, plan_schedule
 from .symmetry import best_grasp_match, rotate_about, stance_cost, stance_yaw, yaw_symmetries
@@ -45,6 +47,9 @@ from .symmetry import best_grasp_match, rotate_about, stance_cost, stance_yaw, y
 #: hands, and the robot-and-box CoM 2 cm past the toes made the carry's first knot infeasible
 #: (docs/planner_s1.md, sessions 33-34).
 LOAD_BALANCE_MARGIN: float | None = 0.02
+#: a pick's two-handed squeeze on opposite faces is moved along them to be antipodal through the
+#: object's CoM (grasp.antipodal_squeeze); False keeps the transferred points
+ANTIPODAL_SQUEEZE = True
 #: weight of the load-aware CoM task in those re-solves (the contacts weigh 100-1000)
 LOAD_BALANCE_COST = 100.0
 #: the re-solves also restart from the IK's seeds (True) or descend from the keyframe alone. On
@@ -291,6 +296,17 @@ def _solve_keyframe(retargeter: Retargeter, st: SubtaskPerception, targets: tupl
     raise RetargetingError(error.code, f"subtask {st.index} ({st.prompt!r}): {error}") from error
 
 
+def _hand_targets(st: SubtaskPerception, given: dict[str, LimbTarget], by_id: dict[str, SceneObject]) -> list[LimbTarget]:
+    targets = []
+    for limb in HANDS:
+        if limb in given:
+            c = given[limb]
+            if c.object_id not in by_id:
+                raise RetargetingError(-2, f"subtask {st.index}: {limb} touches unknown object {c.object_id!r}")
+            targets.append(LimbTarget(limb, np.asarray(c.position, float), np.asarray(c.normal, float), c.object_id))
+    return targets
+
+
 def _hand_load(actions: list[str], targets: list[LimbTarget], by_id: dict[str, SceneObject],
                rolling: frozenset) -> tuple[float, np.ndarray] | None:
     """(mass kg, hands' midpoint) of what a pick or place keyframe's hands hold up; None if nothing
@@ -421,6 +437,9 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
         placing = next((oid for oid in held if oid in placements and oid in by_id), None) \
             if "place" in actions_of(st.prompt) else None
         contacts, base_yaw, goal = _orient(st, by_id, moved, placements, grasps, placing, feet_now, held_now)
+        rolling = frozenset(o.id for o in objects if o.object_class == "trolley")
+        squeezed = antipodal_squeeze(contacts, by_id, rolling) \
+            if "pick" in actions_of(st.prompt) and ANTIPODAL_SQUEEZE else None
         if placing is not None:
             placements[placing] = goal
             moved[placing] = _Displacement.of(by_id[placing], goal)
@@ -439,19 +458,25 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
                 feet_now[limb] = (p, c.object_id or FLOOR)
             p, surface = feet_now[limb]
             targets.append(LimbTarget(limb, p.copy(), np.array([0.0, 0.0, 1.0]), surface))
-        for limb in HANDS:
-            if limb in given:
-                c = given[limb]
-                if c.object_id not in by_id:
-                    raise RetargetingError(-2, f"subtask {st.index}: {limb} touches unknown object {c.object_id!r}")
-                targets.append(LimbTarget(limb, np.asarray(c.position, float), np.asarray(c.normal, float), c.object_id))
         obstacles = scene_obstacles(objects, moved)
-        res, slid, ratio = _solve_keyframe(retargeter, st, tuple(targets), base_orientation, q, obstacles)
+        # the antipodal squeeze first; the transferred hand points if the IK cannot reach it
+        t0 = time.perf_counter()
+        for cs in [cs for cs in (squeezed, contacts) if cs is not None]:
+            hands = _hand_targets(st, _world_contacts(cs, by_id, moved, carried), by_id)
+            try:
+                res, slid, ratio = _solve_keyframe(retargeter, st, tuple(targets + hands), base_orientation, q,
+                                                   obstacles)
+            except RetargetingError:
+                if cs is contacts:
+                    raise
+                continue
+            contacts, targets = cs, targets + hands
+            break
+        res = replace(res, seconds=time.perf_counter() - t0)   # every rung and grasp the IK tried
         if slid:
             targets = [LimbTarget(t.limb, res.contact_points[t.limb].copy(), t.normal, t.object_id)
                        if t.limb in FEET else t for t in targets]
         actions = actions_of(st.prompt)
-        rolling = frozenset(o.id for o in objects if o.object_class == "trolley")
         load = _hand_load(actions, targets, by_id, rolling)
         balance = None
         if load is not None:
