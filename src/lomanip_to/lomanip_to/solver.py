@@ -444,9 +444,13 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
                     status = pst
                 else:
                     status = f"{status}; whole-horizon polish: {pst} (stitched subtask solution kept)"
-        else:  # the failed segment's iterate alone, on its own clock (shifted back below)
-            data, (z, _, _, _, nlp, args, Pm, lbg, ubg, f) = parts[-1]
-            t_failed = segs[len(parts) - 1][0]
+        else:
+            prefix = None if run.timed_out else _solved_prefix(prob, model, data, win, wd, threads, segs, parts)
+            if prefix is not None:   # the solved subtasks and the failed one's iterate, from 0
+                data, z, nlp, args, Pm, lbg, ubg, f = prefix
+            else:  # the failed segment's iterate alone, on its own clock (shifted back below)
+                data, (z, _, _, _, nlp, args, Pm, lbg, ubg, f) = parts[-1]
+                t_failed = segs[len(parts) - 1][0]
     solve_time = time.perf_counter() - t_start - build_time
     res = extract(model, data, win, nlp, z, args, Pm, lbg, ubg)
     stats = res.stats
@@ -644,6 +648,32 @@ def on_plan_clock(res: TOResult, t0: float) -> None:
         for key in ("where", "between_knots_where"):
             if isinstance(check.get(key), str):
                 check[key] = re.sub(r"t=(-?\d+(?:\.\d+)?)", shift, check[key])
+
+
+def _solved_prefix(prob: Problem, model: G1Model, data: ProblemData, win: Window, wd, threads: int, segs: list,
+                   parts: list):
+    """(data, z, nlp, args, Pm, lbg, ubg, f) of a failed segmented solve on [0, end of the failed
+    segment]: the segments that converged stitched with the failed one's last iterate, evaluated on
+    that prefix of the problem; None with nothing solved before the failure, or if the segments' grids
+    do not make the prefix's.
+
+    Why: a failed S2 from prompts handed back only its push segment (10.6-20.2 s), so the pick and
+    carry it had solved were lost and the failure could not be seen in context (session 34)."""
+    if len(parts) < 2:
+        return None
+    poses = {o.id: np.concatenate([np.asarray(o.position, float), o.rpy()]) for o in prob.objects}
+    sp = segment_problem(prob, 0.0, segs[len(parts) - 1][1], prob.initial_configuration, poses)
+    pd = ProblemData(sp, model, moving=data.moving, pairs=data.pairs, stand=data.x_init, env_pairs=data.env_pairs)
+    try:
+        z, _ = _stitch(win, pd, parts)
+    except RuntimeError:
+        return None
+    Zm = z.reshape(pd.grid.K + 1, win.W.n)
+    pd.use_solved_support_poses({oid: Zm[:pd.grid.K, win.W[f"o{j}_pose"]] for oid, j in pd.midx.items()})
+    lbw, ubw, lbg, ubg, Pm, _ = pd.fill(win, *homotopy_stages(prob.options, pd)[-1])
+    nlp = get_nlp(wd, pd.structure, pd.grid.K, threads)
+    args = dict(lbx=_vec(lbw), ubx=_vec(ubw), lbg=_vec(lbg), ubg=_vec(ubg), p=_vec(Pm))
+    return pd, z, nlp, args, Pm, lbg, ubg, float(nlp.F_nlp(z, args["p"])[0])
 
 
 def _stitch(win: Window, data: ProblemData, parts) -> tuple:
