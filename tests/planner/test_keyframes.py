@@ -142,9 +142,13 @@ def test_feet_on_a_top_step_only_as_far_as_their_soles_stay_on_it():
     assert _step_room(retargeter, np.array([0.1, 0.0, 0.0]), Footprint((0.3, 0.0), 0.0, (0.2, 0.2), "crate")) == 0.0
 
 
-def test_a_picked_squeeze_is_antipodal_through_the_com_and_the_place_keeps_it():
-    """The transferred hands 9 cm apart along the box's faces and 4 cm apart in height become one
-    grasp line through the box's CoM, level at their mean height; the place holds the box the same way."""
+def test_a_picked_squeeze_is_antipodal_through_the_com_and_the_place_keeps_it(monkeypatch):
+    """With ``ANTIPODAL_SQUEEZE`` on, the transferred hands 9 cm apart along the box's faces and 4 cm
+    apart in height become one grasp line through the box's CoM, level at their mean height; the
+    place holds the box the same way."""
+    from lomanip_planner import keyframes
+
+    monkeypatch.setattr(keyframes, "ANTIPODAL_SQUEEZE", True)
     perceived = _s1_perception()[:2]
     n = lambda *v: np.array(v, float)  # noqa: E731
     for st in perceived:

@@ -19,6 +19,9 @@ keeps the transferred points):
 Any other contact set (one hand, two objects, a rolling object, faces not opposite) is no squeeze
 (None). The planner falls back to the transferred points when the IK cannot reach the antipodal
 ones (S1's basket, high on its shelf, seen from the box top).
+
+Off by default (``keyframes.ANTIPODAL_SQUEEZE``): on S2's generated pick and carry it did not stop
+the fall under physics, and over the grids it balanced one loaded keyframe fewer (session 35).
 """
 from __future__ import annotations
 

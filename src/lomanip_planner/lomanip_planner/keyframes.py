@@ -6,8 +6,8 @@ pose (pelvis orientation after the rigid transfer, joint angles mapped onto the 
 * foot targets: the transferred xy of each foot; the height is set by the task, i.e. by the
   surface the foot stands on (the floor, or the top of the object it touches, as in S1's box);
   a foot without a contact keeps its current position;
-* hand targets: the transferred points and normals; a two-handed squeeze picked up is made
-  antipodal through the object's CoM (grasp.py, a departure from the paper; the place keeps it);
+* hand targets: the transferred points and normals (optionally, ``ANTIPODAL_SQUEEZE``, a
+  two-handed squeeze picked up is made antipodal through the object's CoM: grasp.py);
 * the human pelvis orientation and joint angles go into the IK as base orientation and posture prior;
 * a keyframe whose hands take up (pick) or hold (place) an object must balance the object's
   weight too: when the robot-and-object CoM is not ``LOAD_BALANCE_MARGIN`` inside the soles, the
@@ -48,8 +48,12 @@ from .symmetry import best_grasp_match, rotate_about, stance_cost, stance_yaw, y
 #: (docs/planner_s1.md, sessions 33-34).
 LOAD_BALANCE_MARGIN: float | None = 0.02
 #: a pick's two-handed squeeze on opposite faces is moved along them to be antipodal through the
-#: object's CoM (grasp.antipodal_squeeze); False keeps the transferred points
-ANTIPODAL_SQUEEZE = True
+#: object's CoM (grasp.antipodal_squeeze); False (the default) keeps the transferred points, as the
+#: paper does. Measured on (session 35), not kept: S2's generated pick and carry still fell under
+#: physics (3.78 s; 4.06 s with the transferred points), its executed hands rode up to 10-12 cm above
+#: the box's centre all the same, and over the grids 41 of 48 loaded keyframes balanced 2 cm inside
+#: the soles (42 without), S1's step onto a turned box at -3.6 / -4.7 cm (-2.2 / -2.4)
+ANTIPODAL_SQUEEZE = False
 #: weight of the load-aware CoM task in those re-solves (the contacts weigh 100-1000)
 LOAD_BALANCE_COST = 100.0
 #: the re-solves also restart from the IK's seeds (True) or descend from the keyframe alone. On
