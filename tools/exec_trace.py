@@ -13,6 +13,7 @@ reads S2's carry with it.
     .venv/bin/python tools/exec_trace.py runs/bench_to/s2_trolley_mass2.5_yaw0_all.npz --start 4 --stop 6.5
     .venv/bin/python tools/exec_trace.py <npz> --gains '{"grasp_squeeze_scale": 2.0}'
     .venv/bin/python tools/exec_trace.py runs/bench_push/base --perturb closer   # a tools/bench_push.py case
+    .venv/bin/python tools/exec_trace.py runs/s2_pick_carry/s2_trolley.npz        # a tools/plan_structure.py --solve
 """
 from __future__ import annotations
 
@@ -85,8 +86,9 @@ def trace_line(ex, objects: list[str]) -> str:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("npz", type=Path, help="a saved TO result (TOResult.save, tools/bench_to.py), or a "
-                    "tools/bench_push.py case folder (plan.npz + problem.pkl)")
+    ap.add_argument("npz", type=Path, help="a saved TO result (TOResult.save, tools/bench_to.py; one of "
+                    "tools/plan_structure.py --solve runs in its task's world), or a tools/bench_push.py case "
+                    "folder (plan.npz + problem.pkl)")
     ap.add_argument("--perturb", default="nominal", help="for a bench_push case: its world with this model error "
                     "(bench_push.PERTURBATIONS)")
     ap.add_argument("--problem", help="its fixture (default: the longest config name its file name starts with)")
@@ -127,6 +129,24 @@ def main() -> int:
         res.densify()
         task, overrides = bench_push.task_and_overrides(bench_push.CASES.get(args.npz.name))
         overrides = bench_push.perturbed(overrides, bench_push.PERTURBATIONS[args.perturb])
+        traj = from_to_result(res, prob.phases, scenario=task["scenario"])
+        sim = Simulation(load_scenario(task["scenario"], overrides))
+    elif args.npz.with_suffix(".case.yaml").is_file():   # a generated plan saved by tools/plan_structure.py
+        import pickle
+
+        import plan_structure
+        import yaml
+        from lomanip_sim.scenario import load_scenario
+        from lomanip_sim.simulator import Simulation
+
+        case = yaml.safe_load(args.npz.with_suffix(".case.yaml").read_text()) or {}
+        task = plan_structure.load_task(case["task"])
+        with open(args.npz.with_suffix(".problem.pkl"), "rb") as f:
+            prob = pickle.load(f)
+        res = TOResult.load(args.npz)
+        if res.t is None:
+            res.densify()
+        overrides = {**(task.get("scenario_overrides") or {}), **(case.get("scenario_overrides") or {})}
         traj = from_to_result(res, prob.phases, scenario=task["scenario"])
         sim = Simulation(load_scenario(task["scenario"], overrides))
     else:

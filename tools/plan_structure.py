@@ -10,6 +10,8 @@ measured against the fixture.
     .venv/bin/python tools/plan_structure.py --task s2_trolley --set box_yaw=0.6
     .venv/bin/python tools/plan_structure.py --grid                # every grid point of S1 and S2
     nice -n 5 .venv/bin/python tools/plan_structure.py --solve 1200  # + one TO solve (minutes)
+    .venv/bin/python tools/plan_structure.py --task s2_trolley --no-fixture --solve 3000 --subtasks 2 \
+        --option waist_yaw_range=0.5 --out runs/s2_pick_carry      # then: tools/exec_trace.py runs/s2_pick_carry/s2_trolley.npz
 """
 from __future__ import annotations
 
@@ -120,6 +122,20 @@ def generated_problem(task_name: str, overrides: dict | None = None):
     return plan.problem, plan
 
 
+def first_subtasks(problem, n: int):
+    """``problem`` cut after its first ``n`` subtasks: their phases, keyframes and the placement goals
+    timed inside them. Why: S2's pick and carry solve in minutes where its push does not, so they
+    can be solved and executed on their own (docs/execution.md, sessions 34-35)."""
+    from dataclasses import replace
+
+    phases = [ph for ph in problem.phases if ph.subtask_index < n]
+    if not phases:
+        raise ValueError(f"--subtasks {n}: the problem has no subtask below {n}")
+    end = max(ph.end for ph in phases)
+    return replace(problem, phases=phases, keyframes=[k for k in problem.keyframes if k.subtask_index < n],
+                   placement_goals=[g for g in problem.placement_goals if g.time is not None and g.time <= end + 1e-9])
+
+
 def load_task(task_name: str) -> dict:
     """A task file of ros_ws/config/tasks as YAML."""
     return yaml.safe_load((ROOT / "ros_ws/config/tasks" / f"{task_name}.yaml").read_text())
@@ -138,8 +154,12 @@ def solver_options(time_limit: float, requested: dict | None = None):
     return load_options(requested, base).replaced(time_limit=float(time_limit))
 
 
-def solve(problem, time_limit: float, out: Path | None = None, requested: dict | None = None) -> None:
-    """One TO solve of a generated problem, printing progress every 10 iterations and per stage."""
+def solve(problem, time_limit: float, out: Path | None = None, requested: dict | None = None,
+          case: dict | None = None) -> None:
+    """One TO solve of a generated problem, printing progress every 10 iterations and per stage.
+    With ``out`` it saves the result there and, beside it, the problem (``<stem>.problem.pkl``) and
+    ``case`` (``<stem>.case.yaml``: task, scenario overrides), which ``tools/exec_trace.py`` reads to
+    execute the plan in its task's world."""
     import time as _time
     from dataclasses import replace
 
@@ -165,9 +185,14 @@ def solve(problem, time_limit: float, out: Path | None = None, requested: dict |
         print(f"  {stage['stage']}: {stage['status']}, {stage['iterations']} it, {stage['time']:.1f} s, "
               f"{stage.get('regularised_iterations', 0)} regularised", flush=True)
     if out is not None:
+        import pickle
+
         out.parent.mkdir(parents=True, exist_ok=True)
         res.save(out)
-        print(f"  saved {out}")
+        with open(out.with_suffix(".problem.pkl"), "wb") as f:
+            pickle.dump(problem, f)
+        out.with_suffix(".case.yaml").write_text(yaml.safe_dump(dict(case or {}), sort_keys=False))
+        print(f"  saved {out} (+ .problem.pkl, .case.yaml)")
 
 
 def format_structure(ps: PlanStructure) -> str:
@@ -200,9 +225,18 @@ def main() -> int:
     ap.add_argument("--grid", action="store_true", help="S1 and S2 over their box_yaw grids (box_mass 2.5)")
     ap.add_argument("--solve", type=float, default=0.0, metavar="SECONDS",
                     help="also solve the generated problem with the TO under this time limit (one solve)")
+    ap.add_argument("--subtasks", type=int, default=0, metavar="N",
+                    help="solve only the first N subtasks of the generated problem (0 = all)")
+    ap.add_argument("--option", nargs="*", default=[], metavar="KEY=YAML",
+                    help="TO options over the task file's, e.g. waist_yaw_range=0.5")
     ap.add_argument("--out", type=Path, default=ROOT / "runs/plan_structure")
     args = ap.parse_args()
     ov = _parse_set(args.set)
+    try:
+        extra = _parse_set(args.option)
+    except ValueError:
+        print("plan_structure: --option takes KEY=YAML items", file=sys.stderr)
+        return 2
     if args.grid:
         for task, yaws in (("s1_basket", (0.0, 0.6, 1.2)), ("s2_trolley", (0.0, 0.6, -0.6, 1.2, -1.2))):
             for y in yaws:
@@ -217,8 +251,17 @@ def main() -> int:
     prob, _ = generated_problem(args.task, ov)
     print(format_structure(structure(prob, f"{args.task} from prompts")), flush=True)
     if args.solve > 0:
+        if args.subtasks > 0:
+            try:
+                prob = first_subtasks(prob, args.subtasks)
+            except ValueError as exc:
+                print(f"plan_structure: {exc}", file=sys.stderr)
+                return 2
+            print(f"solving the first {args.subtasks} subtask(s): horizon {prob.duration:.1f} s", flush=True)
         tag = "_".join(f"{k}{v}" for k, v in sorted(ov.items()))
-        solve(prob, args.solve, args.out / f"{args.task}{'_' + tag if tag else ''}.npz", load_task(args.task).get("options"))
+        options = {**(load_task(args.task).get("options") or {}), **extra}
+        solve(prob, args.solve, args.out / f"{args.task}{'_' + tag if tag else ''}.npz", options,
+              {"task": args.task, "scenario_overrides": ov})
     return 0
 
 
