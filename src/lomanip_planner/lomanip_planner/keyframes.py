@@ -301,6 +301,7 @@ def _solve_keyframe(retargeter: Retargeter, st: SubtaskPerception, targets: tupl
 
 
 def _hand_targets(st: SubtaskPerception, given: dict[str, LimbTarget], by_id: dict[str, SceneObject]) -> list[LimbTarget]:
+    """The IK's hand targets from the world contacts ``given``; a hand on an unknown object is an error."""
     targets = []
     for limb in HANDS:
         if limb in given:
