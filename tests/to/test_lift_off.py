@@ -78,3 +78,36 @@ def test_the_knots_after_a_lift_off_start_gently(g1):
         np.testing.assert_allclose(lbw[v, rest + n], -lim)
     assert modes[rest + LIFT_OFF_KNOTS + 1] == "free"
     assert np.all(ubw[v, rest + LIFT_OFF_KNOTS + 1] == 3.0)
+
+
+def _lift_off_bounds(g1, **options):
+    from dataclasses import replace
+
+    prob = load_problem("s2_trolley", model=g1)
+    prob = replace(prob, options=replace(prob.options, **options))
+    data = ProblemData(prob, g1)
+    win, _ = solver.get_window(g1, data.structure)
+    lbw, ubw, _, _, _, _ = data.fill(win, *solver.homotopy_stages(data.prob.options, data)[-1])
+    modes = [data.obj_mode(k, "box") for k in range(data.grid.K)]
+    lift = [k for k in range(1, data.grid.K) if modes[k] == "free" and modes[k - 1] == "fixed"]
+    assert lift, f"S2 lifts the box off the table, where it rests untouched: {modes}"
+    v = win.W[f"o{data.midx['box']}_vel"]
+    return [(lbw[v, k + n][:3], ubw[v, k + n][:3]) for k in lift for n in (1, 2)]
+
+
+def test_a_box_lifted_off_a_table_starts_gently_too(g1):
+    """S2's box rests untouched ("fixed") on the table until the hands lift it: the knots after its
+    lift-off get the gentle start's speed bounds as a box lifted off the floor does."""
+    from lomanip_to.discretize import LIFT_OFF_SPEED
+
+    (lo1, hi1), (lo2, hi2) = _lift_off_bounds(g1)[:2]
+    np.testing.assert_allclose(hi1, LIFT_OFF_SPEED)
+    np.testing.assert_allclose(lo2, -2 * LIFT_OFF_SPEED)
+
+
+def test_lift_off_vertical_rises_before_moving_sideways(g1):
+    (lo1, hi1), (lo2, hi2) = _lift_off_bounds(g1, lift_off_vertical=0.1)[:2]
+    for lo, hi in ((lo1, hi1), (lo2, hi2)):
+        np.testing.assert_allclose(lo[:2], -0.1)
+        np.testing.assert_allclose(hi[:2], 0.1)
+        assert lo[2] == 0.1 and hi[2] >= 0.25

@@ -388,11 +388,13 @@ class ProblemData:
 
     def _knots_after_lift_off(self, k: int, oid: str) -> int:
         """n (1..LIFT_OFF_KNOTS) if knot ``k`` is the n-th free knot after the one at which ``oid``
-        left its support (that one is at rest), else 0."""
+        left its support (that one is at rest), else 0. Resting untouched ("fixed", S2's box on the
+        table) counts as on a support: before session 35 only "supported" and "rolling" did, so S2's
+        lift never had the gentle start."""
         for n in range(1, LIFT_OFF_KNOTS + 1):
             if k - n - 1 < 0 or any(self.obj_mode(k - i, oid) != "free" for i in range(n + 1)):
                 return 0
-            if self.obj_mode(k - n - 1, oid) in ("supported", "rolling"):
+            if self.obj_mode(k - n - 1, oid) in ("supported", "rolling", "fixed"):
                 return n
         return 0
 
@@ -821,7 +823,12 @@ class ProblemData:
                     setb(f"o{j}_vel", k, 0, 0)
                 elif n_lift:  # the knots right after a lift-off: a gentle start (LIFT_OFF_SPEED)
                     lim = n_lift * np.array([LIFT_OFF_SPEED] * 3 + [LIFT_OFF_TURN_RATE] * 3)
-                    setb(f"o{j}_vel", k, -lim, lim)
+                    lo, hi = -lim, lim.copy()
+                    v_up = float(opt.lift_off_vertical)
+                    if v_up > 0.0:  # straight up off the support first (Options.lift_off_vertical)
+                        lo[:2], hi[:2] = -v_up, v_up
+                        lo[2] = min(v_up, hi[2])
+                    setb(f"o{j}_vel", k, lo, hi)
                 else:
                     setb(f"o{j}_vel", k, -3, 3)
                 if mode in ("supported", "rolling"):

@@ -258,6 +258,12 @@ class Options:
     #: whole plan failed there (session 34).  Not a KKT certificate, like the stall; the physical
     #: checks still decide success.  False: the cap fails the stage, as before session 35
     accept_feasible_at_cap: bool = True
+    #: m/s: over the LIFT_OFF_KNOTS knots after an object leaves its support it rises at least this
+    #: fast and moves sideways at most this fast (0 = off: only the gentle start's speed bounds).
+    #: Why: S2's generated lift raised the box 6 mm in 0.8 s while moving it 4-8 cm sideways;
+    #: executed, the box dragged on the table top and slipped out of the hands (docs/execution.md,
+    #: session 35)
+    lift_off_vertical: float = 0.0
     #: Hessian ipopt gets in the homotopy guide stage and in the final stage: "exact" (Lagrangian)
     #: or "cost" (the cost's Hessian only, constraint curvature dropped; see assembly)
     guide_hessian: str = "exact"
