@@ -84,6 +84,21 @@ def trace_line(ex, objects: list[str]) -> str:
     return " | ".join(parts)
 
 
+def _in_task_world(plan: Path, problem: Path, scenario: str, overrides: dict):
+    """(trajectory, simulation) of a saved plan and its pickled problem, in ``scenario``'s world."""
+    import pickle
+
+    from lomanip_sim.scenario import load_scenario
+    from lomanip_sim.simulator import Simulation
+    from lomanip_sim.trajectory import from_to_result
+    from lomanip_to.result import TOResult
+
+    with open(problem, "rb") as f:
+        prob = pickle.load(f)
+    res = TOResult.load(plan)   # densified on load
+    return from_to_result(res, prob.phases, scenario=scenario), Simulation(load_scenario(scenario, overrides))
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("npz", type=Path, help="a saved TO result (TOResult.save, tools/bench_to.py; one of "
@@ -114,41 +129,22 @@ def main() -> int:
         print(f"exec_trace: {e}", file=sys.stderr)
         return 2
     if push_case:
-        import pickle
-
         import bench_push
-        from lomanip_sim.scenario import load_scenario
-        from lomanip_sim.simulator import Simulation
 
         if args.perturb not in bench_push.PERTURBATIONS:
             print(f"exec_trace: --perturb must be one of {', '.join(bench_push.PERTURBATIONS)}", file=sys.stderr)
             return 2
-        with open(args.npz / "problem.pkl", "rb") as f:
-            prob = pickle.load(f)
-        res = TOResult.load(args.npz / "plan.npz")
-        res.densify()
         task, overrides = bench_push.task_and_overrides(bench_push.CASES.get(args.npz.name))
         overrides = bench_push.perturbed(overrides, bench_push.PERTURBATIONS[args.perturb])
-        traj = from_to_result(res, prob.phases, scenario=task["scenario"])
-        sim = Simulation(load_scenario(task["scenario"], overrides))
+        traj, sim = _in_task_world(args.npz / "plan.npz", args.npz / "problem.pkl", task["scenario"], overrides)
     elif args.npz.with_suffix(".case.yaml").is_file():   # a generated plan saved by tools/plan_structure.py
-        import pickle
-
         import plan_structure
         import yaml
-        from lomanip_sim.scenario import load_scenario
-        from lomanip_sim.simulator import Simulation
 
         case = yaml.safe_load(args.npz.with_suffix(".case.yaml").read_text()) or {}
         task = plan_structure.load_task(case["task"])
-        with open(args.npz.with_suffix(".problem.pkl"), "rb") as f:
-            prob = pickle.load(f)
-        res = TOResult.load(args.npz)
-        if res.t is None:
-            res.densify()
         overrides = {**(task.get("scenario_overrides") or {}), **(case.get("scenario_overrides") or {})}
-        traj = from_to_result(res, prob.phases, scenario=task["scenario"])
-        sim = Simulation(load_scenario(task["scenario"], overrides))
+        traj, sim = _in_task_world(args.npz, args.npz.with_suffix(".problem.pkl"), task["scenario"], overrides)
     else:
         problem = args.problem or bench_exec._problem_of(args.npz.stem)
         prob = fixtures.load_problem(problem, {})

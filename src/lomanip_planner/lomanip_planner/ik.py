@@ -46,7 +46,6 @@ class ComOverFeetTask(mink.Task):
         self.load_mass = max(float(mass), 0.0)
         self.load_point = np.zeros(3) if point is None else np.asarray(point, float).copy()
 
-
     def compute_error(self, configuration: mink.Configuration) -> np.ndarray:
         mid = np.mean([configuration.data.site(f).xpos for f in self.feet], axis=0)
         com = combined_com(float(configuration.model.body_subtreemass[1]), configuration.data.subtree_com[1],

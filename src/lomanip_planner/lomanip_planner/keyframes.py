@@ -436,15 +436,15 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
     moved: dict[str, _Displacement] = {}
     grasps: dict[str, dict[str, LimbTarget]] = {}   # object -> hand contacts it is held by (perceived frame)
     held_now: set[str] = set()
+    rolling = frozenset(o.id for o in objects if o.object_class == "trolley")
     for st in subtasks:
         targets: list[LimbTarget] = []
+        actions = actions_of(st.prompt)
         held = [c.object_id for c in st.contacts if c.limb in HANDS]
         placing = next((oid for oid in held if oid in placements and oid in by_id), None) \
-            if "place" in actions_of(st.prompt) else None
+            if "place" in actions else None
         contacts, base_yaw, goal = _orient(st, by_id, moved, placements, grasps, placing, feet_now, held_now)
-        rolling = frozenset(o.id for o in objects if o.object_class == "trolley")
-        squeezed = antipodal_squeeze(contacts, by_id, rolling) \
-            if "pick" in actions_of(st.prompt) and ANTIPODAL_SQUEEZE else None
+        squeezed = antipodal_squeeze(contacts, by_id, rolling) if "pick" in actions and ANTIPODAL_SQUEEZE else None
         if placing is not None:
             placements[placing] = goal
             moved[placing] = _Displacement.of(by_id[placing], goal)
@@ -481,7 +481,6 @@ def retarget_subtasks(subtasks: list[SubtaskPerception], objects: list[SceneObje
         if slid:
             targets = [LimbTarget(t.limb, res.contact_points[t.limb].copy(), t.normal, t.object_id)
                        if t.limb in FEET else t for t in targets]
-        actions = actions_of(st.prompt)
         load = _hand_load(actions, targets, by_id, rolling)
         balance = None
         if load is not None:

@@ -376,8 +376,8 @@ def _timing_split(st: dict, wall: float) -> dict:
 
 
 def _converged(status: str) -> bool:
-    return status in ("Solve_Succeeded", "Solved_To_Acceptable_Level") or status.startswith(STALLED_STATUS) \
-        or status.startswith(CAPPED_FEASIBLE_STATUS)
+    return status in ("Solve_Succeeded", "Solved_To_Acceptable_Level") or \
+        status.startswith((STALLED_STATUS, CAPPED_FEASIBLE_STATUS))
 
 
 def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progress=None) -> TOResult:
@@ -407,7 +407,7 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
     else:
         build_time = time.perf_counter() - t_start
         x_init = np.asarray(prob.initial_configuration, float)
-        poses = {o.id: np.concatenate([np.asarray(o.position, float), o.rpy()]) for o in prob.objects}
+        poses = _initial_poses(prob)
         parts, converged, status, grips = [], True, "", {}
         for i, (t0, t1) in enumerate(segs):
             sp = segment_problem(prob, t0, t1, x_init, poses, grips)
@@ -429,12 +429,8 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
                                if (names := [st["stage"].strip() for st in run.stages if st["status"] == kind])) \
                 or "Solve_Succeeded"
             z_st, lam_st = _stitch(win, data, parts)
-            Zm = z_st.reshape(data.grid.K + 1, win.W.n)
-            data.use_solved_support_poses({oid: Zm[:data.grid.K, win.W[f"o{j}_pose"]] for oid, j in data.midx.items()})
-            lbw, ubw, lbg, ubg, Pm, _ = data.fill(win, *homotopy_stages(opt, data)[-1])
-            nlp = get_nlp(wd, data.structure, data.grid.K, threads)
-            args = dict(lbx=_vec(lbw), ubx=_vec(ubw), lbg=_vec(lbg), ubg=_vec(ubg), p=_vec(Pm))
-            z, f = z_st, float(nlp.F_nlp(z_st, args["p"])[0])
+            z = z_st
+            nlp, args, Pm, lbg, ubg, f = _evaluate_stitched(data, win, wd, threads, z_st)
             if opt.polish_iterations > 0 and not run.timed_out:
                 zp, _, _, pst, nlp, args_p, Pm_p, lbg_p, ubg_p, fp = _run_stages(
                     run, data, win, wd, threads, "whole-horizon polish ", z0=z_st, lam=lam_st,
@@ -661,19 +657,30 @@ def _solved_prefix(prob: Problem, model: G1Model, data: ProblemData, win: Window
     carry it had solved were lost and the failure could not be seen in context (session 34)."""
     if len(parts) < 2:
         return None
-    poses = {o.id: np.concatenate([np.asarray(o.position, float), o.rpy()]) for o in prob.objects}
-    sp = segment_problem(prob, 0.0, segs[len(parts) - 1][1], prob.initial_configuration, poses)
+    sp = segment_problem(prob, 0.0, segs[len(parts) - 1][1], prob.initial_configuration, _initial_poses(prob))
     pd = ProblemData(sp, model, moving=data.moving, pairs=data.pairs, stand=data.x_init, env_pairs=data.env_pairs)
     try:
         z, _ = _stitch(win, pd, parts)
     except RuntimeError:
         return None
-    Zm = z.reshape(pd.grid.K + 1, win.W.n)
-    pd.use_solved_support_poses({oid: Zm[:pd.grid.K, win.W[f"o{j}_pose"]] for oid, j in pd.midx.items()})
-    lbw, ubw, lbg, ubg, Pm, _ = pd.fill(win, *homotopy_stages(prob.options, pd)[-1])
-    nlp = get_nlp(wd, pd.structure, pd.grid.K, threads)
+    nlp, args, Pm, lbg, ubg, f = _evaluate_stitched(pd, win, wd, threads, z)
+    return pd, z, nlp, args, Pm, lbg, ubg, f
+
+
+def _evaluate_stitched(data: ProblemData, win: Window, wd, threads: int, z: np.ndarray):
+    """(nlp, args, Pm, lbg, ubg, objective) of stitched segments ``z`` on ``data``'s grid: the final
+    homotopy stage's rows, with feet on moved objects standing on the objects' solved poses."""
+    Zm = z.reshape(data.grid.K + 1, win.W.n)
+    data.use_solved_support_poses({oid: Zm[:data.grid.K, win.W[f"o{j}_pose"]] for oid, j in data.midx.items()})
+    lbw, ubw, lbg, ubg, Pm, _ = data.fill(win, *homotopy_stages(data.prob.options, data)[-1])
+    nlp = get_nlp(wd, data.structure, data.grid.K, threads)
     args = dict(lbx=_vec(lbw), ubx=_vec(ubw), lbg=_vec(lbg), ubg=_vec(ubg), p=_vec(Pm))
-    return pd, z, nlp, args, Pm, lbg, ubg, float(nlp.F_nlp(z, args["p"])[0])
+    return nlp, args, Pm, lbg, ubg, float(nlp.F_nlp(z, args["p"])[0])
+
+
+def _initial_poses(prob: Problem) -> dict:
+    """Object id -> (position, rpy) where ``prob`` starts it."""
+    return {o.id: np.concatenate([np.asarray(o.position, float), o.rpy()]) for o in prob.objects}
 
 
 def _stitch(win: Window, data: ProblemData, parts) -> tuple:
