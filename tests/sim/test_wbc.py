@@ -368,6 +368,47 @@ def test_loaded_com_counts_the_weight_the_hands_carry():
     assert np.allclose(xy0, com[:2]) and gain0 == 1.0
 
 
+def test_grasp_forces_chosen_by_the_qp_keep_their_sum_and_stay_in_their_pyramids():
+    """``grasp_force_in_qp``: while the box is carried the QP picks the hands' forces; their sum is the
+    net force fed forward and each lies in its friction pyramid of ``mu_grasp`` about its face's
+    normal, however large the squeeze asked for (20 times the plan's here: fixed, that asks for
+    more than the arms' torque limits give)."""
+    sim, tr = simulation("case_lift_box")
+    P = tr.objects["box"][0]
+    gains = WbcGains(grasp_force_in_qp=True, grasp_squeeze_scale=20.0, mu_grasp=0.5)
+    wbc = WholeBodyController(sim.world, tr, gains)
+    sim.set_controller(wbc)
+    seen, squeezed = 0, 0.0
+    while wbc.status.t_ref < tr.duration:
+        sim.step()
+        t = wbc.status.t_ref
+        i, s = tr.index_at(t)
+        c = tr.phase_at(t).contacts
+        if not ({"left_hand", "right_hand"} <= set(c) and wbc._carried_at("box", i) and P[i, 2] > P[0, 2] + 0.02):
+            continue
+        want = [wbc.hand_feedforward(l, c, i, s, sim.data) for l in ("left_hand", "right_hand")]
+        got = [wbc.last_forces[l] for l in ("left_hand", "right_hand")]
+        if min(np.linalg.norm(f) for f in got) < 1e-6:  # a hand that lost the box: no force (hand_lost_time)
+            continue
+        assert wbc.status.qp_ok
+        assert np.allclose(got[0] + got[1], want[0] + want[1], atol=1e-4)
+        for limb, f in zip(("left_hand", "right_hand"), got):
+            n = wbc._contact_normals(c[limb])[i]
+            fn = float(n @ f)
+            assert fn >= gains.grasp_min_normal - 1e-6
+            assert np.linalg.norm(f - fn * n) <= 0.5 * fn + 1e-6  # inside the pyramid (inside the cone)
+        seen += 1
+        squeezed = max(squeezed, np.linalg.norm(want[0] - want[1]) - np.linalg.norm(got[0] - got[1]))
+    assert seen > 50
+    assert squeezed > 10.0  # the QP squeezed less than it was asked to
+    assert not sim.has_fallen()
+    fixed, tr = simulation("case_lift_box")  # the same squeeze fed forward as a fixed force: it falls
+    fixed.set_controller(WholeBodyController(fixed.world, tr, WbcGains(grasp_squeeze_scale=20.0)))
+    while fixed.time < tr.duration and not fixed.has_fallen():
+        fixed.step()
+    assert fixed.has_fallen()
+
+
 def test_hand_contact_released_when_its_object_has_left_the_hand():
     """A planned hand contact whose object has gone is released until the plan's own release
     (``hand_release``): no hand force in the QP, the arm back on the plan's posture. The push of

@@ -175,6 +175,13 @@ class WbcGains:
     # a foot and lost the box (docs/execution.md, session 36). The QP can squeeze less where the
     # torques run out, never less than friction needs. Off by default
     grasp_force_in_qp: bool = False
+    # on an object the plan lifts later but that still rests on its support (before the lift), the
+    # hands' net horizontal force fed forward is at most resting_object_mu times the support's normal
+    # force (the object's weight plus the hands' push down); the squeeze is kept (0: off). Why: the
+    # TO holds a resting object fixed, so its plans can lean on it: S2's fixture plan pushes its box
+    # 36 N forwards into the table (friction at most 20 N), the QP counted on the push back, and the
+    # robot leant 12 cm ahead of its plan onto its toes before the lift (docs/execution.md, session 36)
+    resting_object_mu: float = 0.0
     mu_grasp: float = 0.5  # the rubber hands' friction is 1.0: a margin of 2
     grasp_min_normal: float = 5.0  # N
     w_grasp_force: float = 1e-3  # per N^2
@@ -1125,6 +1132,22 @@ class WholeBodyController:
         A = np.vstack(rows) if rows else np.zeros((0, nx))
         return lo, hi, eq, A, np.array(glo, float), np.array(ghi, float)
 
+    def _resting_excess(self, oid: str, contacts: dict, lerp) -> np.ndarray:
+        """What each hand's planned force (on the robot) must change by so that the hands' net
+        horizontal force on resting object ``oid`` stays within ``resting_object_mu`` of its support's
+        normal force (zero when it does)."""
+        mates = [l for l in HANDS if contacts.get(l) is not None and contacts[l].object_id == oid
+                 and l in self.traj.forces]
+        on_object = -sum(lerp(self.traj.forces[l]) for l in mates)  # Newton's third law
+        normal = self.world.objects[oid].mass * float(-self.model.opt.gravity[2]) - float(on_object[2])
+        cap = self.g.resting_object_mu * max(normal, 0.0)
+        h = float(np.linalg.norm(on_object[:2]))
+        if h <= cap:
+            return _ZERO3
+        excess = np.zeros(3)
+        excess[:2] = on_object[:2] * (1.0 - cap / h)
+        return excess / len(mates)  # the hands' sum on the robot grows by the excess taken off the object
+
     def _carried_at(self, oid: str, i: int) -> bool:
         """Whether grid interval i has ``oid`` carried by the hands alone (its needed force is fed forward)."""
         need = self._object_net.get(oid)
@@ -1161,6 +1184,8 @@ class WholeBodyController:
         oid = contacts[limb].object_id
         need = self._object_net.get(oid)
         if need is None or np.isnan(need[i, 0]) or np.isnan(need[i + 1, 0]):
+            if self.g.resting_object_mu > 0 and need is not None:
+                f = f + self._resting_excess(oid, contacts, lerp)
             return f
         mates = [l for l in HANDS if contacts.get(l) is not None and contacts[l].object_id == oid and l in tr.forces]
         mean = sum(lerp(tr.forces[l]) for l in mates) / len(mates)

@@ -386,6 +386,14 @@ class ProblemData:
             return "supported"
         return mo.mode
 
+    def resting_under_hands(self, k: int, oid: str) -> bool:
+        """Whether ``oid`` rests untouched by the plan's motions ("fixed") at knot k while a hand
+        touches it, and ``Options.resting_object_dynamics`` gives it its support's forces and its
+        dynamics there (at rest), instead of holding it as an immovable support."""
+        if not self.prob.options.resting_object_dynamics or self.obj_mode(k, oid) != "fixed":
+            return False
+        return any((c := self.contact(k, h)) is not None and c.object_id == oid for h in HANDS)
+
     def _knots_after_lift_off(self, k: int, oid: str) -> int:
         """n (1..LIFT_OFF_KNOTS) if knot ``k`` is the n-th free knot after the one at which ``oid``
         left its support (that one is at rest), else 0. Resting untouched ("fixed", S2's box on the
@@ -831,7 +839,7 @@ class ProblemData:
                     setb(f"o{j}_vel", k, lo, hi)
                 else:
                     setb(f"o{j}_vel", k, -3, 3)
-                if mode in ("supported", "rolling"):
+                if mode in ("supported", "rolling") or self.resting_under_hands(k, oid):
                     setb(f"o{j}_us", k, np.tile([-1, -1, 0.0], 4), np.tile([1, 1, 1.0], 4))
                 else:
                     setb(f"o{j}_us", k, 0, 0)
@@ -912,7 +920,8 @@ class ProblemData:
                 mode = self.obj_mode(k, oid)
                 if last:
                     rows(f"o{j} kinematic integration", k, -INF, INF)
-                if mode in ("fixed", "attached"):
+                held_at_rest = self.resting_under_hands(k, oid)  # its support's forces hold what the hands do
+                if mode == "attached" or (mode == "fixed" and not held_at_rest):
                     rows(f"o{j} linear dynamics", k, -INF, INF)
                     rows(f"o{j} angular dynamics", k, -INF, INF)
                 prev = self.obj_mode(k - 1, oid) if k > 0 else "fixed"
@@ -921,7 +930,7 @@ class ProblemData:
                 placed = mode == "fixed" and prev != "fixed"
                 if mode not in ("supported", "rolling") and not placed:
                     rows(f"o{j} support contact (on surface, aligned)", k, -INF, INF)
-                rows(f"o{j} support friction cone", k, 0 if mode in ("supported", "rolling") else -INF, INF)
+                rows(f"o{j} support friction cone", k, 0 if mode in ("supported", "rolling") or held_at_rest else -INF, INF)
                 # only while carried: resting, the support row already holds the corners at the surface
                 rows(f"o{j} above the floor", k, 0 if mode == "free" else -INF, INF)
                 if mode != "rolling":
@@ -1090,7 +1099,7 @@ class ProblemData:
         t, mg = self.grid.t, self.model.mass * G
         for k in range(self.grid.K - 1):
             for oid, j in self.midx.items():
-                if self.obj_mode(k, oid) not in ("rolling", "supported"):
+                if self.obj_mode(k, oid) not in ("rolling", "supported") and not self.resting_under_hands(k, oid):
                     continue
                 mo = self._lumped(k, oid)[0]
                 W0[W[f"o{j}_us"], k] = np.tile([0.0, 0.0, mo * G / (4 * mg)], 4)

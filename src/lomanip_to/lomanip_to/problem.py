@@ -264,6 +264,13 @@ class Options:
     #: executed, the box dragged on the table top and slipped out of the hands (docs/execution.md,
     #: session 35)
     lift_off_vertical: float = 0.0
+    #: a movable object at rest ("fixed": untouched by the plan's motions) that a hand touches gets
+    #: its support's corner forces (inside their friction cones) and its dynamics at rest, so the
+    #: hands' net force on it is what its support can hold. Off, it is an immovable support: S2's
+    #: plan leant on its box with 36 N forwards (the table's friction holds about 20 N), and executed
+    #: the robot ran 12 cm ahead of its plan onto its toes before the lift (docs/to.md, session 36).
+    #: Off by default (measured on S2 and case_lift_box only)
+    resting_object_dynamics: bool = False
     #: Hessian ipopt gets in the homotopy guide stage and in the final stage: "exact" (Lagrangian)
     #: or "cost" (the cost's Hessian only, constraint curvature dropped; see assembly)
     guide_hessian: str = "exact"
