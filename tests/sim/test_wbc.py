@@ -409,6 +409,32 @@ def test_grasp_forces_chosen_by_the_qp_keep_their_sum_and_stay_in_their_pyramids
     assert fixed.has_fallen()
 
 
+def test_resting_object_mu_caps_the_lean_on_a_resting_object_and_keeps_the_squeeze():
+    """``resting_object_mu``: before the lift the hands' fed-forward net horizontal force on the
+    resting box is at most mu times its support's normal force; the squeeze is unchanged."""
+    import dataclasses
+
+    sim, tr = simulation("case_lift_box")
+    P = tr.objects["box"][0]
+    k = next(k for k in range(1, tr.n - 2) if P[k + 1, 2] < P[0, 2] + 1e-3
+             and {"left_hand", "right_hand"} <= set(tr.phase_at(tr.t[k]).contacts)
+             and "box" not in tr.phase_at(tr.t[k]).free_objects)
+    c = tr.phase_at(tr.t[k]).contacts
+    # the plan leans on the box: 30 N forwards from the left hand (on the robot: backwards)
+    leaning = dataclasses.replace(tr, forces={l: f + (np.array([-30.0, 0.0, 0.0]) if l == "left_hand" else 0.0)
+                                              for l, f in tr.forces.items()})  # fmt: skip
+    mass, g = sim.world.objects["box"].mass, 9.81
+    plain = WholeBodyController(sim.world, leaning)
+    capped = WholeBodyController(sim.world, leaning, WbcGains(resting_object_mu=0.4))
+    f0 = [plain.hand_feedforward(l, c, k, 0.0) for l in ("left_hand", "right_hand")]
+    f1 = [capped.hand_feedforward(l, c, k, 0.0) for l in ("left_hand", "right_hand")]
+    on0, on1 = -(f0[0] + f0[1]), -(f1[0] + f1[1])
+    assert np.linalg.norm(on0[:2]) > 0.4 * (mass * g - on0[2]) + 5.0  # as planned: more than it holds
+    assert np.linalg.norm(on1[:2]) <= 0.4 * (mass * g - on1[2]) + 1e-6
+    assert np.isclose(on1[2], on0[2])
+    assert np.allclose(f1[0] - f1[1], f0[0] - f0[1])  # the squeeze is kept
+
+
 def test_hand_contact_released_when_its_object_has_left_the_hand():
     """A planned hand contact whose object has gone is released until the plan's own release
     (``hand_release``): no hand force in the QP, the arm back on the plan's posture. The push of
