@@ -403,7 +403,7 @@ def test_grasp_forces_chosen_by_the_qp_keep_their_sum_and_stay_in_their_pyramids
     assert squeezed > 10.0  # the QP squeezed less than it was asked to
     assert not sim.has_fallen()
     fixed, tr = simulation("case_lift_box")  # the same squeeze fed forward as a fixed force: it falls
-    fixed.set_controller(WholeBodyController(fixed.world, tr, WbcGains(grasp_squeeze_scale=20.0)))
+    fixed.set_controller(WholeBodyController(fixed.world, tr, WbcGains(grasp_force_in_qp=False, grasp_squeeze_scale=20.0)))
     while fixed.time < tr.duration and not fixed.has_fallen():
         fixed.step()
     assert fixed.has_fallen()

@@ -173,8 +173,9 @@ class WbcGains:
     # Why: fed forward as a fixed force, S2's doubled squeeze (68 N a hand) drove both shoulders and
     # wrists to their torque limits the moment the box left the table; the robot sagged 5 cm, unloaded
     # a foot and lost the box (docs/execution.md, session 36). The QP can squeeze less where the
-    # torques run out, never less than friction needs. Off by default
-    grasp_force_in_qp: bool = False
+    # torques run out, never less than friction needs. With it S2's nominal plan executes to task
+    # success (without it the robot falls at the lift)
+    grasp_force_in_qp: bool = True
     # on an object the plan lifts later but that still rests on its support (before the lift), the
     # hands' net horizontal force fed forward is at most resting_object_mu times the support's normal
     # force (the object's weight plus the hands' push down); the squeeze is kept (0: off). Why: the
@@ -184,7 +185,7 @@ class WbcGains:
     resting_object_mu: float = 0.0
     mu_grasp: float = 0.5  # the rubber hands' friction is 1.0: a margin of 2
     grasp_min_normal: float = 5.0  # N
-    w_grasp_force: float = 1e-3  # per N^2
+    w_grasp_force: float = 1e-2  # per N^2 (1e-3 and 1e-4: S2 nominal fell after the set-down; docs/execution.md, session 36)
     # s, see WholeBodyController._hand_offsets. Was 0.3: S1's plan brings the right hand (a point in
     # the TO) 2-4 cm over the box's front corner 0.6 s before the grasp, the 13 x 7 x 11 cm hand box
     # caught on that edge and the arm pushed the robot backwards (fell at 2.6 s)
@@ -1094,12 +1095,13 @@ class WholeBodyController:
         return num / den, den / w_robot
 
     def _grasp_rows(self, contacts: dict, hand_points: list, bhand: np.ndarray, Ahand: np.ndarray,
-                    H: np.ndarray, f: np.ndarray, col0: int, i: int):
+                    H: np.ndarray, f: np.ndarray, col0: int, mom0: int | None, i: int):
         """The hands' force rows of the QP: (lower, upper, equality flags) of ``Ahand``'s rows and the
-        grasp pyramids' rows (A, lower, upper). Each hand's force is fixed to ``bhand`` unless
+        grasp rows (A, lower, upper). Each hand's force is fixed to ``bhand`` unless
         ``grasp_force_in_qp`` and it holds a carried object with another hand: then the first such
-        hand's rows fix the hands' sum (``Ahand`` and the cost ``H``, ``f`` are changed in place) and
-        each hand's force is bounded by its pyramid."""
+        hand's rows fix the hands' sum (``Ahand`` and the cost ``H``, ``f`` are changed in place), each
+        hand's force is bounded by its pyramid and, with patch moments (columns from ``mom0``), its
+        moment by the patch and torsion times the normal force the QP chooses."""
         g, nx = self.g, Ahand.shape[1]
         lo, hi, eq = bhand.copy(), bhand.copy(), np.ones(len(bhand), bool)
         rows, glo, ghi = [], [], []
@@ -1127,6 +1129,17 @@ class WholeBodyController:
                 rows.append(A)
                 glo += [-1e30] * 4 + [g.grasp_min_normal]
                 ghi += [0.0] * 4 + [g.f_max]
+                if mom0 is not None:  # |tau . axis| <= size (n . f) for the patch's two tilts and the torsion
+                    t1, t2 = self._tangents(n)
+                    m = mom0 + 3 * k
+                    for axis, size in ((t1, g.hand_patch_half), (t2, g.hand_patch_half), (n, g.hand_torsion)):
+                        for sign in (1.0, -1.0):
+                            A = np.zeros((1, nx))
+                            A[0, m : m + 3] = sign * axis
+                            A[0, c : c + 3] = -size * n
+                            rows.append(A)
+                            glo.append(-1e30)
+                            ghi.append(0.0)
                 H[c : c + 3, c : c + 3] += g.w_grasp_force * np.eye(3)
                 f[c : c + 3] -= g.w_grasp_force * want
         A = np.vstack(rows) if rows else np.zeros((0, nx))
@@ -1508,7 +1521,7 @@ class WholeBodyController:
                 if g.push_feedforward_measured and touching and limb in self._push_force:
                     bhand[3 * k : 3 * k + 3] = self.measured_forces.get(limb, bhand[3 * k : 3 * k + 3])
         hand_lo, hand_hi, hand_eq, Agrasp, grasp_lo, grasp_hi = self._grasp_rows(
-            contacts, hand_points, bhand, Ahand, H, f, NJ + NV + nfoot, i)
+            contacts, hand_points, bhand, Ahand, H, f, NJ + NV + nfoot, NJ + NV + nf if nm else None, i)
         # friction pyramids: 4 tangent rows + normal bounds per point
         Ain = np.zeros((5 * len(points), nx))
         bu = np.zeros(5 * len(points))
