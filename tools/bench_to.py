@@ -23,6 +23,7 @@ grows along the run.  Timings are on this machine (2 shared cores; expect them h
   .venv/bin/python tools/bench_to.py                  # nominal S1 and S2, AllKeyframe + NoKeyframe
   .venv/bin/python tools/bench_to.py --full           # the whole grid (hours)
   .venv/bin/python tools/bench_to.py --scenarios s1_basket --variants all
+  .venv/bin/python tools/bench_to.py --scenarios s2_trolley --variants all --cell box_mass=5.0,box_yaw=0.6
 """
 from __future__ import annotations
 
@@ -161,6 +162,8 @@ def main(argv=None) -> int:
     ap.add_argument("--time-limit", type=float, default=None, help="per solve (s); default: Options")
     ap.add_argument("--option", action="append", default=[], metavar="KEY=YAML",
                     help="an Options field for every solve, e.g. --option guide_hessian=cost (repeatable)")
+    ap.add_argument("--cell", action="append", default=[], metavar="KEY=VALUE[,KEY=VALUE]",
+                    help="only the grid cells that match (repeatable), e.g. --cell box_mass=5.0,box_yaw=0.6")
     ap.add_argument("--resolve", action="store_true",
                     help="solve each case a second time in the same process (cached build) and report it")
     ap.add_argument("--out", type=Path, default=ROOT / "runs" / "bench_to")
@@ -175,8 +178,16 @@ def main(argv=None) -> int:
     header = (f"{'case':<24} {'variant':<8} {'converged':<9} {'success':<7} {'iter':>5} {'build s':>7} "
               f"{'solve s':>7} {'peak MB':>7} {'max viol':>9} {'pen mm':>6}")
     print(header, flush=True)
+    try:
+        wanted = [{k: float(v) for k, _, v in (kv.partition("=") for kv in spec.split(","))} for spec in a.cell]
+    except ValueError:
+        print(f"bench_to: --cell wants KEY=NUMBER[,KEY=NUMBER], got {a.cell}", file=sys.stderr)
+        return 2
     for sc in a.scenarios:
-        cells = grid(sc) if a.full else grid(sc)[:1]
+        cells = grid(sc) if a.full or wanted else grid(sc)[:1]
+        if wanted:
+            cells = [c for c in cells if any(all(k in c and abs(float(c[k]) - v) < 1e-9 for k, v in w.items())
+                                             for w in wanted)]
         for over, variant in itertools.product(cells, a.variants):
             try:
                 r = run_case(model, sc, over, variant, a.out, a.time_limit, extra, a.resolve)
