@@ -309,65 +309,6 @@ def test_grasp_squeeze_scale_scales_the_squeeze_and_keeps_the_net_force():
         assert np.linalg.norm(f1[0] - f1[1]) > 1.0  # the plan squeezes: the test can tell
 
 
-def test_carried_object_servo_adds_the_force_that_brings_the_object_back_to_its_plan():
-    """With ``carried_object_kp`` the hands' net force on a carried object adds m kp (p_plan - p),
-    bounded by ``carried_object_max_accel``; the squeeze is untouched, and without the gains (the
-    default) the object's actual pose changes nothing."""
-    sim, tr = simulation("case_lift_box")
-    P = tr.objects["box"][0]
-    k = next(k for k in range(1, tr.n - 2) if P[k, 2] > P[0, 2] + 0.02 and P[k + 1, 2] > P[0, 2] + 0.02
-             and {"left_hand", "right_hand"} <= set(tr.phase_at(tr.t[k]).contacts))
-    c = tr.phase_at(tr.t[k]).contacts
-    mass = sim.world.objects["box"].mass
-    box = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "box")
-    adr = sim.model.jnt_qposadr[sim.model.body_jntadr[box]]
-    plain = WholeBodyController(sim.world, tr)
-    servo = WholeBodyController(sim.world, tr, WbcGains(carried_object_kp=100.0, carried_object_max_accel=50.0))
-    capped = WholeBodyController(sim.world, tr, WbcGains(carried_object_kp=100.0, carried_object_max_accel=1.0))
-
-    def net_and_squeeze(wbc, drop):
-        d = mujoco.MjData(sim.model)
-        d.qpos[:] = sim.data.qpos
-        d.qpos[adr : adr + 3] = P[k] - wbc._com_offset(box) + [0.0, 0.0, -drop]  # the box `drop` below its plan
-        d.qpos[adr + 3 : adr + 7] = tr.objects["box"][1][k]
-        mujoco.mj_forward(sim.model, d)
-        fl, fr = (wbc.hand_feedforward(l, c, k, 0.0, d) for l in ("left_hand", "right_hand"))
-        return -(fl + fr), fl - fr  # the force on the box, the squeeze
-
-    n0, q0 = net_and_squeeze(plain, 0.03)
-    n1, q1 = net_and_squeeze(servo, 0.03)
-    n2, _ = net_and_squeeze(capped, 0.03)
-    n3, _ = net_and_squeeze(servo, 0.0)
-    assert np.allclose(n1 - n0, [0.0, 0.0, mass * 100.0 * 0.03], atol=1e-6)  # pushed back up
-    assert np.allclose(q1, q0, atol=1e-9)
-    assert np.allclose(n2 - n0, [0.0, 0.0, mass * 1.0], atol=1e-6)  # bounded
-    assert np.allclose(n3, n0, atol=1e-6)  # on its plan: nothing added
-    assert np.allclose(net_and_squeeze(plain, 0.0)[0], n0, atol=1e-9)  # off: the pose does not matter
-
-
-def test_loaded_com_counts_the_weight_the_hands_carry():
-    """``_loaded_com`` (``com_margin_counts_load``): while the hands carry the box its weight, at the
-    hands' planned point, joins the robot's CoM; with nothing carried it is the robot's CoM alone."""
-    sim, tr = simulation("case_lift_box")
-    P = tr.objects["box"][0]
-    wbc = WholeBodyController(sim.world, tr, WbcGains(com_margin_counts_load=True))
-    k = next(k for k in range(1, tr.n - 2) if P[k, 2] > P[0, 2] + 0.02 and P[k + 1, 2] > P[0, 2] + 0.02
-             and {"left_hand", "right_hand"} <= set(tr.phase_at(tr.t[k]).contacts))
-    c = tr.phase_at(tr.t[k]).contacts
-    com = wbc.refs.com[k]
-    xy, gain = wbc._loaded_com(com, c, k, 0.0)
-    g = 9.81
-    w_robot = wbc._robot_mass * g
-    fz = wbc._object_net["box"][k, 2]
-    hands = 0.5 * (wbc.refs.site_p["left_hand"][k] + wbc.refs.site_p["right_hand"][k])
-    assert 30.0 < wbc._robot_mass < 40.0 and fz > 0.9 * sim.world.objects["box"].mass * g
-    assert np.allclose(xy, (w_robot * com[:2] + fz * hands[:2]) / (w_robot + fz), atol=1e-3)
-    assert np.isclose(gain, (w_robot + fz) / w_robot, rtol=1e-3)
-    assert np.linalg.norm(xy - com[:2]) > 0.005  # the test can tell
-    xy0, gain0 = wbc._loaded_com(com, {}, k, 0.0)  # no hand on it: the robot alone
-    assert np.allclose(xy0, com[:2]) and gain0 == 1.0
-
-
 def test_grasp_forces_chosen_by_the_qp_keep_their_sum_and_stay_in_their_pyramids():
     """``grasp_force_in_qp``: while the box is carried the QP picks the hands' forces; their sum is the
     net force fed forward and each lies in its friction pyramid of ``mu_grasp`` about its face's
@@ -386,7 +327,7 @@ def test_grasp_forces_chosen_by_the_qp_keep_their_sum_and_stay_in_their_pyramids
         c = tr.phase_at(t).contacts
         if not ({"left_hand", "right_hand"} <= set(c) and wbc._carried_at("box", i) and P[i, 2] > P[0, 2] + 0.02):
             continue
-        want = [wbc.hand_feedforward(l, c, i, s, sim.data) for l in ("left_hand", "right_hand")]
+        want = [wbc.hand_feedforward(l, c, i, s) for l in ("left_hand", "right_hand")]
         got = [wbc.last_forces[l] for l in ("left_hand", "right_hand")]
         if min(np.linalg.norm(f) for f in got) < 1e-6:  # a hand that lost the box: no force (hand_lost_time)
             continue
@@ -407,32 +348,6 @@ def test_grasp_forces_chosen_by_the_qp_keep_their_sum_and_stay_in_their_pyramids
     while fixed.time < tr.duration and not fixed.has_fallen():
         fixed.step()
     assert fixed.has_fallen()
-
-
-def test_resting_object_mu_caps_the_lean_on_a_resting_object_and_keeps_the_squeeze():
-    """``resting_object_mu``: before the lift the hands' fed-forward net horizontal force on the
-    resting box is at most mu times its support's normal force; the squeeze is unchanged."""
-    import dataclasses
-
-    sim, tr = simulation("case_lift_box")
-    P = tr.objects["box"][0]
-    k = next(k for k in range(1, tr.n - 2) if P[k + 1, 2] < P[0, 2] + 1e-3
-             and {"left_hand", "right_hand"} <= set(tr.phase_at(tr.t[k]).contacts)
-             and "box" not in tr.phase_at(tr.t[k]).free_objects)
-    c = tr.phase_at(tr.t[k]).contacts
-    # the plan leans on the box: 30 N forwards from the left hand (on the robot: backwards)
-    leaning = dataclasses.replace(tr, forces={l: f + (np.array([-30.0, 0.0, 0.0]) if l == "left_hand" else 0.0)
-                                              for l, f in tr.forces.items()})  # fmt: skip
-    mass, g = sim.world.objects["box"].mass, 9.81
-    plain = WholeBodyController(sim.world, leaning)
-    capped = WholeBodyController(sim.world, leaning, WbcGains(resting_object_mu=0.4))
-    f0 = [plain.hand_feedforward(l, c, k, 0.0) for l in ("left_hand", "right_hand")]
-    f1 = [capped.hand_feedforward(l, c, k, 0.0) for l in ("left_hand", "right_hand")]
-    on0, on1 = -(f0[0] + f0[1]), -(f1[0] + f1[1])
-    assert np.linalg.norm(on0[:2]) > 0.4 * (mass * g - on0[2]) + 5.0  # as planned: more than it holds
-    assert np.linalg.norm(on1[:2]) <= 0.4 * (mass * g - on1[2]) + 1e-6
-    assert np.isclose(on1[2], on0[2])
-    assert np.allclose(f1[0] - f1[1], f0[0] - f0[1])  # the squeeze is kept
 
 
 def test_hand_contact_released_when_its_object_has_left_the_hand():

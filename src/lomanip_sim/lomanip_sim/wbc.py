@@ -159,13 +159,6 @@ class WbcGains:
     # demo-push plans executed. (The clamp to the centre line is what executes them: to the sole's
     # edges 5 of 12, none across in a single stance 5 of 12; docs/execution.md, session 11)
     com_clamp_time: float = 0.1
-    # the clamp above keeps the ground point of the robot's CoM together with the weight of what its
-    # hands carry (the net force fed forward on a carried object, at the hands' planned positions)
-    # inside the soles, and moves the robot's CoM by what that needs. Why: S2's plans hold the 2.5 kg
-    # box at arm's length with the robot's CoM alone inside the margin; its weight took both feet's
-    # centre of pressure to the toes and the robot tipped forwards at the grasp (docs/execution.md,
-    # session 34). Off by default
-    com_margin_counts_load: bool = False
     # grasp force optimisation on a carried object held by two or more hands: the QP chooses the hands'
     # forces, their sum fixed to the net force fed forward (what the object's motion needs) and each
     # inside a friction pyramid of ``mu_grasp`` about its face's normal (at least ``grasp_min_normal``
@@ -176,13 +169,6 @@ class WbcGains:
     # torques run out, never less than friction needs. With it S2's nominal plan executes to task
     # success (without it the robot falls at the lift)
     grasp_force_in_qp: bool = True
-    # on an object the plan lifts later but that still rests on its support (before the lift), the
-    # hands' net horizontal force fed forward is at most resting_object_mu times the support's normal
-    # force (the object's weight plus the hands' push down); the squeeze is kept (0: off). Why: the
-    # TO holds a resting object fixed, so its plans can lean on it: S2's fixture plan pushes its box
-    # 36 N forwards into the table (friction at most 20 N), the QP counted on the push back, and the
-    # robot leant 12 cm ahead of its plan onto its toes before the lift (docs/execution.md, session 36)
-    resting_object_mu: float = 0.0
     mu_grasp: float = 0.5  # the rubber hands' friction is 1.0: a margin of 2
     grasp_min_normal: float = 5.0  # N
     w_grasp_force: float = 1e-2  # per N^2 (1e-3 and 1e-4: S2 nominal fell after the set-down; docs/execution.md, session 36)
@@ -324,19 +310,6 @@ class WbcGains:
     # while the robot walked with it, until they lost it at 4.9 s; with 2 it stayed in the hands
     # (docs/execution.md, session 29). 1 feeds the plan's squeeze forward as it is
     grasp_squeeze_scale: float = 2.0
-    # object-level impedance on a carried object (free in the schedule): the hands' position and
-    # orientation references ride on the object's actual pose (the plan's grasp carried from the
-    # planned to the actual object frame), and the net force fed forward adds m (kp e_p + kd e_v) of
-    # the object's own tracking error (at most carried_object_max_accel), so the box, not each hand,
-    # is servoed to its plan. Why: the hands tracked their planned world positions, and where a
-    # box lagged or slipped they rode up its faces and over its top (S2 generated pick, session 35:
-    # the hands 13-15 cm above the box's centre by 4.0 s, with 33-45 N of normal force at friction 1).
-    # Without the PD the followed box sinks (case_lift_box, 8.4 cm below its goal). The fraction of
-    # the object's displacement from its plan the hands take (0: off, the default; 1: all of it)
-    carried_object_follow: float = 0.0
-    carried_object_kp: float = 0.0  # 1/s^2
-    carried_object_kd: float = 0.0  # 1/s
-    carried_object_max_accel: float = 5.0  # m/s^2
     # on an object pushed along the floor (one the hands follow), the hand's reference along the
     # contact normal is an admittance: it moves out of the object while the measured normal force
     # exceeds the desired one and into it while it is below (rate in m/s per N, depth bounded).
@@ -435,15 +408,6 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
-def _rotation(w: np.ndarray) -> np.ndarray:
-    """Rotation matrix of rotation vector ``w`` (Rodrigues)."""
-    th = float(np.linalg.norm(w))
-    if th < 1e-12:
-        return np.eye(3)
-    K = _skew(w / th)
-    return np.eye(3) + np.sin(th) * K + (1.0 - np.cos(th)) * (K @ K)
-
-
 def _rot_error(R_des: np.ndarray, R: np.ndarray) -> np.ndarray:
     """World-frame rotation vector (small-angle) that takes R to R_des."""
     E = R_des @ R.T
@@ -539,7 +503,6 @@ class WholeBodyController:
         self._com_shift = np.zeros(2)  # the CoM reference's clamp shift (com_margin, com_clamp_time)
         root = int(m.body_rootid[self.pelvis])
         self._robot_bodies = [b for b in range(1, m.nbody) if int(m.body_rootid[b]) == root and m.body_mass[b] > 0]
-        self._robot_mass = float(sum(m.body_mass[b] for b in self._robot_bodies))
         self._angmom_prev: tuple[float, np.ndarray] | None = None  # (time, A_L) of the last step
 
     # ---------------------------------------------------------------------------- references
@@ -1077,23 +1040,6 @@ class WholeBodyController:
         q[3:7] /= np.linalg.norm(q[3:7])
         return q
 
-    def _loaded_com(self, com_ref: np.ndarray, contacts: dict, i: int, s: float) -> tuple[np.ndarray, float]:
-        """(xy of the robot's CoM ``com_ref`` with the weight its hands carry at grid time i + s, the
-        factor by which a shift of that point must be scaled to move the robot's CoM by as much)."""
-        w_robot = self._robot_mass * float(-self.model.opt.gravity[2])
-        num, den = w_robot * com_ref[:2], w_robot
-        for oid, need in self._object_net.items():
-            hands = [l for l in HANDS if contacts.get(l) is not None and contacts[l].object_id == oid]
-            if not hands or not self._carried_at(oid, i):
-                continue
-            fz = float(need[i, 2] + s * (need[i + 1, 2] - need[i, 2]))  # on the object; its reaction loads the robot
-            if fz <= 0.0:
-                continue
-            at = sum(self.refs.site_p[l][i] + s * (self.refs.site_p[l][i + 1] - self.refs.site_p[l][i]) for l in hands)
-            num = num + fz * at[:2] / len(hands)
-            den += fz
-        return num / den, den / w_robot
-
     def _grasp_rows(self, contacts: dict, hand_points: list, bhand: np.ndarray, Ahand: np.ndarray,
                     H: np.ndarray, f: np.ndarray, col0: int, mom0: int | None, i: int):
         """The hands' force rows of the QP: (lower, upper, equality flags) of ``Ahand``'s rows and the
@@ -1145,46 +1091,15 @@ class WholeBodyController:
         A = np.vstack(rows) if rows else np.zeros((0, nx))
         return lo, hi, eq, A, np.array(glo, float), np.array(ghi, float)
 
-    def _resting_excess(self, oid: str, contacts: dict, lerp) -> np.ndarray:
-        """What each hand's planned force (on the robot) must change by so that the hands' net
-        horizontal force on resting object ``oid`` stays within ``resting_object_mu`` of its support's
-        normal force (zero when it does)."""
-        mates = [l for l in HANDS if contacts.get(l) is not None and contacts[l].object_id == oid
-                 and l in self.traj.forces]
-        on_object = -sum(lerp(self.traj.forces[l]) for l in mates)  # Newton's third law
-        normal = self.world.objects[oid].mass * float(-self.model.opt.gravity[2]) - float(on_object[2])
-        cap = self.g.resting_object_mu * max(normal, 0.0)
-        h = float(np.linalg.norm(on_object[:2]))
-        if h <= cap:
-            return _ZERO3
-        excess = np.zeros(3)
-        excess[:2] = on_object[:2] * (1.0 - cap / h)
-        return excess / len(mates)  # the hands' sum on the robot grows by the excess taken off the object
-
     def _carried_at(self, oid: str, i: int) -> bool:
         """Whether grid interval i has ``oid`` carried by the hands alone (its needed force is fed forward)."""
         need = self._object_net.get(oid)
         return need is not None and not (np.isnan(need[i, 0]) or np.isnan(need[i + 1, 0]))
 
-    def _object_servo(self, data: mujoco.MjData, oid: str, i: int, s: float) -> np.ndarray:
-        """m (kp e_p + kd e_v): the force (world, N) that servoes a carried object to its plan
-        (``carried_object_kp``, ``_kd``, bounded by ``carried_object_max_accel``)."""
-        g = self.g
-        fr = self._object_frames(data, oid, i, s, lifted=True)
-        if fr is None:
-            return _ZERO3
-        acc = g.carried_object_kp * (fr[2] - fr[0]) - g.carried_object_kd * self._object_velocity_lead(data, oid, i)
-        n = float(np.linalg.norm(acc))
-        if n > g.carried_object_max_accel:
-            acc = acc * (g.carried_object_max_accel / n)
-        return self.world.objects[oid].mass * acc
-
-    def hand_feedforward(self, limb: str, contacts: dict, i: int, s: float,
-                         data: mujoco.MjData | None = None) -> np.ndarray:
+    def hand_feedforward(self, limb: str, contacts: dict, i: int, s: float) -> np.ndarray:
         """Force on the robot at hand ``limb`` (world, N) fed forward at grid time i + s of an engaged grasp:
         the plan's, or on a lifted object (``hand_force_from_object_motion``) the plan's squeeze (times
-        ``grasp_squeeze_scale``) plus this hand's share of what the object's planned motion needs (with
-        ``data``, plus the object servo of ``carried_object_kp`` / ``_kd``)."""
+        ``grasp_squeeze_scale``) plus this hand's share of what the object's planned motion needs."""
         tr = self.traj
 
         def lerp(a):
@@ -1197,16 +1112,11 @@ class WholeBodyController:
         oid = contacts[limb].object_id
         need = self._object_net.get(oid)
         if need is None or np.isnan(need[i, 0]) or np.isnan(need[i + 1, 0]):
-            if self.g.resting_object_mu > 0 and need is not None:
-                f = f + self._resting_excess(oid, contacts, lerp)
             return f
         mates = [l for l in HANDS if contacts.get(l) is not None and contacts[l].object_id == oid and l in tr.forces]
         mean = sum(lerp(tr.forces[l]) for l in mates) / len(mates)
         squeeze = self.g.grasp_squeeze_scale * (f - mean)
-        net = lerp(need)
-        if data is not None and (self.g.carried_object_kp > 0 or self.g.carried_object_kd > 0):
-            net = net + self._object_servo(data, oid, i, s)
-        return squeeze - net / len(mates)  # the object receives -f (Newton's third law)
+        return squeeze - lerp(need) / len(mates)  # the object receives -f (Newton's third law)
 
     # ---------------------------------------------------------------------------- control
     def reset(self, data: mujoco.MjData) -> None:
@@ -1320,19 +1230,11 @@ class WholeBodyController:
                             if g.hand_registered_outward_only:  # never into the face it let go of
                                 n = nr[i if s < 0.5 else i + 1]
                                 registered = registered - min(float(n @ registered), 0.0) * n
-                R_ref = R_.site_R[limb][i if s < 0.5 else i + 1]
                 if g.hand_follows_object and limb in contacts and contacts[limb] is not None:
-                    oid = contacts[limb].object_id
-                    a_f = g.carried_object_follow if g.carried_object_follow > 0 and self._carried_at(oid, i) else 0.0
-                    if a_f > 0.0 and (fr := self._object_frames(data, oid, i, s, lifted=True)) is not None:
-                        c_act, R_act, c_plan, R_plan = fr
-                        p_ref = p_ref + a_f * (c_act + R_act @ (R_plan.T @ (p_ref - c_plan)) - p_ref)
-                        turn = a_f * _rot_error(R_act, R_plan)  # the hand turns (that much) with the object
-                        R_ref = _rotation(turn) @ R_ref
-                    else:
-                        p_ref = self._on_actual_object(data, oid, p_ref, i, s)
+                    p_ref = self._on_actual_object(data, contacts[limb].object_id, p_ref, i, s)
                     if g.hand_push_admittance:
                         p_ref = p_ref + self._push_admittance(data, limb, contacts[limb], t, i, s)
+                R_ref = R_.site_R[limb][i if s < 0.5 else i + 1]
                 wb = released_w[limb]
                 if wb > 0.0:  # released: the plan's hand carried with the torso
                     p_body, R_body = self._on_torso(data, p_plan, R_ref, i, s)
@@ -1377,10 +1279,8 @@ class WholeBodyController:
         shift = np.zeros(2)
         if box is not None:  # keep the CoM reference a margin inside the support (marginal plans tip over)
             lo, hi, Hh = box
-            xy, gain = (self._loaded_com(com_ref, contacts, i, s) if g.com_margin_counts_load
-                        else (com_ref[:2], 1.0))
-            loc = Hh @ xy
-            shift = gain * (Hh.T @ (np.clip(loc, lo, hi) - loc))
+            loc = Hh @ com_ref[:2]
+            shift = Hh.T @ (np.clip(loc, lo, hi) - loc)
         if g.com_clamp_time > 0:  # the shift follows the support's changes smoothly (first order)
             self._com_shift += min(m.opt.timestep / g.com_clamp_time, 1.0) * (shift - self._com_shift)
             shift = self._com_shift
@@ -1517,7 +1417,7 @@ class WholeBodyController:
                 self._last_touch[limb] = t
             lost = g.hand_lost_time > 0 and t - self._last_touch.get(limb, -np.inf) > g.hand_lost_time
             if self._engaged.get(limb) is phase and limb in tr.forces and not lost:
-                bhand[3 * k : 3 * k + 3] = self.hand_feedforward(limb, contacts, i, s, data)
+                bhand[3 * k : 3 * k + 3] = self.hand_feedforward(limb, contacts, i, s)
                 if g.push_feedforward_measured and touching and limb in self._push_force:
                     bhand[3 * k : 3 * k + 3] = self.measured_forces.get(limb, bhand[3 * k : 3 * k + 3])
         hand_lo, hand_hi, hand_eq, Agrasp, grasp_lo, grasp_hi = self._grasp_rows(
