@@ -1110,9 +1110,9 @@ class WholeBodyController:
             n, f_des = self._push_force[limb]
             return f + (f_des - float(n @ f)) * n
         oid = contacts[limb].object_id
-        need = self._object_net.get(oid)
-        if need is None or np.isnan(need[i, 0]) or np.isnan(need[i + 1, 0]):
+        if not self._carried_at(oid, i):
             return f
+        need = self._object_net[oid]
         mates = [l for l in HANDS if contacts.get(l) is not None and contacts[l].object_id == oid and l in tr.forces]
         mean = sum(lerp(tr.forces[l]) for l in mates) / len(mates)
         squeeze = self.g.grasp_squeeze_scale * (f - mean)
