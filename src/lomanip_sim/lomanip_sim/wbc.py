@@ -172,25 +172,6 @@ class WbcGains:
     mu_grasp: float = 0.5  # the rubber hands' friction is 1.0: a margin of 2
     grasp_min_normal: float = 5.0  # N
     w_grasp_force: float = 1e-2  # per N^2 (1e-3 and 1e-4: S2 nominal fell after the set-down; docs/execution.md, session 36)
-    # ... and the moment those forces (and the hands' patch moments) put on the object about its CoM
-    # is drawn to what turns it back to its planned orientation: I (kp e_R - kd w), ``w_grasp_moment``
-    # per (N m)^2. Why: with only their sum fixed, the QP used the hands' opposite shear forces as a
-    # free moment on the robot (a balance actuator); the box cannot return that moment without
-    # turning, so physics gave a different split. S1's left hand counted on the box pushing it down
-    # 20 N where it pushed 4 N, rode 7 cm up the face in 0.1 s and let go (docs/execution.md, session 37)
-    w_grasp_moment: float = 0.0
-    # on a carried object, each hand's shear (the force along its face) fed forward is the measured
-    # one (low-passed over ``grasp_shear_filter`` s), as a wrist force sensor would give, and its
-    # normal force is the plan's squeeze. Why: the plan's shear assumes the box hangs in the hands;
-    # where it still rests on the floor, the torques meant to carry its weight lift the hands, and
-    # with kp 400 on a ~1 kg hand 25 N of shear is 6 cm of error: S1's hands rode up the faces
-    grasp_shear_measured: bool = False
-    # a hand's reference while it grasps an object the plan lifts rides on the planned object
-    # (WholeBodyController._grasp_on_object)
-    grasp_reference_on_object: bool = False
-    grasp_shear_filter: float = 0.02
-    grasp_orientation_kp: float = 100.0  # 1/s^2
-    grasp_orientation_kd: float = 20.0  # 1/s
     # s, see WholeBodyController._hand_offsets. Was 0.3: S1's plan brings the right hand (a point in
     # the TO) 2-4 cm over the box's front corner 0.6 s before the grasp, the 13 x 7 x 11 cm hand box
     # caught on that edge and the arm pushed the robot backwards (fell at 2.6 s)
@@ -496,7 +477,6 @@ class WholeBodyController:
         self._object_net = self._object_net_forces() if self.g.hand_force_from_object_motion else {}
         self._pyramids: dict = {}
         self._vel6 = np.zeros(6)
-        self._shear: dict[str, np.ndarray] = {}
         self._admittance_keys: dict = {}  # id(contact) -> (contact, its key in _admittance)
         #: (QP layout, daqp sense bits of its active inequalities) of the last step: at 500 Hz the
         #: active set hardly changes, and starting from it halves daqp's time
@@ -572,9 +552,6 @@ class WholeBodyController:
         obstacles = static_geoms if self.g.hand_detour else []
         mov_bodies = movable_bodies(m, root)
         movable = self._movable_poses(mov_bodies) if obstacles or (self.g.hand_approach and mov_bodies) else {}
-        if self.g.grasp_reference_on_object:
-            for limb in HANDS:
-                sp[limb] = self._grasp_on_object(limb, sp[limb])
         for limb in HANDS:  # the plan's hand is a point on the surface; the sim's hand is a box
             off = self._hand_offsets(limb, sR[limb])
             sp[limb] = sp[limb] + off
@@ -811,38 +788,6 @@ class WholeBodyController:
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
         return d.xmat[body].reshape(3, 3).T @ (d.subtree_com[body] - d.xpos[body])
-
-    def _grasp_spans(self, limb: str) -> list[tuple[int, int, str]]:
-        """(first, last grid index, object) of each stretch where ``limb`` touches an object the plan lifts."""
-        tr, out = self.traj, []
-        for ph in tr.phases:
-            c = ph.contacts.get(limb)
-            if c is None or c.object_id not in tr.objects or not self._lifted_in_plan(c.object_id):
-                continue
-            i0 = int(np.searchsorted(tr.t, ph.start - 1e-9))
-            i1 = int(min(np.searchsorted(tr.t, ph.end + 1e-9), tr.n) - 1)
-            if out and out[-1][2] == c.object_id and i0 <= out[-1][1] + 1:
-                out[-1] = (out[-1][0], i1, c.object_id)
-            elif i1 > i0:
-                out.append((i0, i1, c.object_id))
-        return out
-
-    def _grasp_on_object(self, limb: str, p: np.ndarray) -> np.ndarray:
-        """The hand's planned positions ``p`` (N,3) with each grasp of a lifted object carried on the
-        planned object: its point in the object's frame goes linearly from where it is at the
-        grasp's start to where it is at its end. Why: the TO holds the contact point on the object
-        at its knots only; between them S1's plan slid the left hand 4 cm up the face of the resting
-        box and back, and the hand that followed rode off the face (docs/execution.md, session 37)."""
-        tr, out = self.traj, p.copy()
-        for i0, i1, oid in self._grasp_spans(limb):
-            P, Q = np.asarray(tr.objects[oid][0]), np.asarray(tr.objects[oid][1])
-            R = np.array([frames.quat_to_matrix(q) for q in Q[i0 : i1 + 1]])
-            loc0 = R[0].T @ (p[i0] - P[i0])
-            loc1 = R[-1].T @ (p[i1] - P[i1])
-            a = (tr.t[i0 : i1 + 1] - tr.t[i0]) / max(tr.t[i1] - tr.t[i0], 1e-9)
-            loc = loc0[None, :] + a[:, None] * (loc1 - loc0)[None, :]
-            out[i0 : i1 + 1] = P[i0 : i1 + 1] + np.einsum("nij,nj->ni", R, loc)
-        return out
 
     def _contact_starts(self, limb: str) -> list:
         """(start time, contact) of each contact of ``limb`` that follows a phase without it."""
@@ -1096,8 +1041,7 @@ class WholeBodyController:
         return q
 
     def _grasp_rows(self, contacts: dict, hand_points: list, bhand: np.ndarray, Ahand: np.ndarray,
-                    H: np.ndarray, f: np.ndarray, col0: int, mom0: int | None, i: int,
-                    data: mujoco.MjData | None = None, s: float = 0.0):
+                    H: np.ndarray, f: np.ndarray, col0: int, mom0: int | None, i: int):
         """The hands' force rows of the QP: (lower, upper, equality flags) of ``Ahand``'s rows and the
         grasp rows (A, lower, upper). Each hand's force is fixed to ``bhand`` unless
         ``grasp_force_in_qp`` and it holds a carried object with another hand: then the first such
@@ -1111,8 +1055,7 @@ class WholeBodyController:
         if g.grasp_force_in_qp:
             for k, (limb, _j) in enumerate(hand_points):
                 oid = contacts[limb].object_id
-                if (np.any(bhand[3 * k : 3 * k + 3] != 0.0) and limb not in self._push_force and self._carried_at(oid, i)
-                        and not g.grasp_shear_measured):
+                if np.any(bhand[3 * k : 3 * k + 3] != 0.0) and limb not in self._push_force and self._carried_at(oid, i):
                     groups.setdefault(oid, []).append(k)
         for ks in groups.values():
             if len(ks) < 2:
@@ -1145,49 +1088,8 @@ class WholeBodyController:
                             ghi.append(0.0)
                 H[c : c + 3, c : c + 3] += g.w_grasp_force * np.eye(3)
                 f[c : c + 3] -= g.w_grasp_force * want
-            if g.w_grasp_moment > 0.0 and data is not None:
-                oid = contacts[hand_points[k0][0]].object_id
-                Am, tau_des = self._grasp_moment_rows(data, oid, [hand_points[k][0] for k in ks],
-                                                      [col0 + 3 * k for k in ks],
-                                                      [mom0 + 3 * k for k in ks] if mom0 is not None else None,
-                                                      nx, i, s)
-                H += g.w_grasp_moment * (Am.T @ Am)
-                f -= g.w_grasp_moment * (Am.T @ tau_des)
         A = np.vstack(rows) if rows else np.zeros((0, nx))
         return lo, hi, eq, A, np.array(glo, float), np.array(ghi, float)
-
-    def _grasp_moment_rows(self, data: mujoco.MjData, oid: str, limbs: list[str], fcols: list[int],
-                           mcols: list[int] | None, nx: int, i: int, s: float) -> tuple[np.ndarray, np.ndarray]:
-        """(A (3, nx), tau (3,)): A x is the moment the hands put on object ``oid`` about its actual CoM
-        (the QP's forces and patch moments are on the robot: the object gets their opposites), tau the
-        moment that turns it towards its planned orientation (``grasp_orientation_kp``/``kd``)."""
-        g = self.g
-        fr = self._object_frames(data, oid, i, s, lifted=True)
-        b = self._object_body[oid][0] if oid in self._object_body else -1
-        A = np.zeros((3, nx))
-        if fr is None or b < 0:
-            return A, np.zeros(3)
-        c_act, R_act, _c_plan, R_plan = fr
-        for limb, col in zip(limbs, fcols):
-            A[:, col : col + 3] = -_skew(data.site_xpos[self.site_id[limb]] - c_act)
-        for col in mcols or []:
-            A[:, col : col + 3] = -np.eye(3)
-        Ri = data.ximat[b].reshape(3, 3)
-        I_w = Ri @ np.diag(self.model.body_inertia[b]) @ Ri.T
-        mujoco.mj_objectVelocity(self.model, data, mujoco.mjtObj.mjOBJ_BODY, b, self._vel6, 0)
-        w = self._vel6[:3]
-        tau = I_w @ (g.grasp_orientation_kp * _rot_error(R_plan, R_act) - g.grasp_orientation_kd * w) + np.cross(w, I_w @ w)
-        return A, tau
-
-    def _measured_shear(self, limb: str, c, want: np.ndarray, i: int) -> np.ndarray:
-        """``want``'s normal part plus the hand's measured force along the face, low-passed."""
-        n = self._contact_normals(c)[i]
-        meas = self.measured_forces.get(limb, np.zeros(3))
-        shear = meas - (n @ meas) * n
-        a = min(1.0, self.model.opt.timestep / max(self.g.grasp_shear_filter, 1e-9))
-        prev = self._shear.get(limb)
-        self._shear[limb] = shear if prev is None else prev + a * (shear - prev)
-        return (n @ want) * n + self._shear[limb]
 
     def _carried_at(self, oid: str, i: int) -> bool:
         """Whether grid interval i has ``oid`` carried by the hands alone (its needed force is fed forward)."""
@@ -1229,7 +1131,6 @@ class WholeBodyController:
         self._admittance.clear()
         self._com_shift[:] = 0.0
         self._angmom_prev = None
-        self._shear.clear()
         self._touch_key = None
         self._qp_working_set = None
 
@@ -1519,12 +1420,8 @@ class WholeBodyController:
                 bhand[3 * k : 3 * k + 3] = self.hand_feedforward(limb, contacts, i, s)
                 if g.push_feedforward_measured and touching and limb in self._push_force:
                     bhand[3 * k : 3 * k + 3] = self.measured_forces.get(limb, bhand[3 * k : 3 * k + 3])
-                elif g.grasp_shear_measured and limb not in self._push_force and self._carried_at(contacts[limb].object_id, i):
-                    bhand[3 * k : 3 * k + 3] = self._measured_shear(limb, contacts[limb], bhand[3 * k : 3 * k + 3], i)
-            else:
-                self._shear.pop(limb, None)
         hand_lo, hand_hi, hand_eq, Agrasp, grasp_lo, grasp_hi = self._grasp_rows(
-            contacts, hand_points, bhand, Ahand, H, f, NJ + NV + nfoot, NJ + NV + nf if nm else None, i, data, s)
+            contacts, hand_points, bhand, Ahand, H, f, NJ + NV + nfoot, NJ + NV + nf if nm else None, i)
         # friction pyramids: 4 tangent rows + normal bounds per point
         Ain = np.zeros((5 * len(points), nx))
         bu = np.zeros(5 * len(points))
