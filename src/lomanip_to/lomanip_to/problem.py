@@ -269,7 +269,8 @@ class Options:
     #: hands' net force on it is what its support can hold. Off, it is an immovable support: S2's
     #: plan leant on its box with 36 N forwards (the table's friction holds about 20 N), and executed
     #: the robot ran 12 cm ahead of its plan onto its toes before the lift (docs/to.md, session 36).
-    #: Off by default (measured on S2 and case_lift_box only)
+    #: Off by default: on in the S1 and S2 fixtures, where it cost two S1 grid cells their pick
+    #: (5.0 kg; yaw 0.6) while S1 nominal passes every check with it (docs/to.md, session 37)
     resting_object_dynamics: bool = False
     #: Hessian ipopt gets in the homotopy guide stage and in the final stage: "exact" (Lagrangian)
     #: or "cost" (the cost's Hessian only, constraint curvature dropped; see assembly)
