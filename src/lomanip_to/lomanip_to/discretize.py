@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .model import FEET, HANDS, LIMBS, SOLE_CENTER, SOLE_FORCE_POINTS, G1Model, rot_to_rpy, rpy_to_rot
+from .model import FEET, HANDS, LIMBS, SOLE_CENTER, G1Model, rot_to_rpy, rpy_to_rot, sole_force_points
 from .problem import FLOOR, INVALID_REQUEST, STANCE, WALKING, Problem, ProblemError, SceneObject
 from .route import footprint_of, point_along, shortest_route, smoothstep, walking_heading
 from .transcription import UPPER_BODY_XD, G, Structure, Window, grip_axes
@@ -228,7 +228,8 @@ class ProblemData:
                                    self_pairs(model) if opt.self_collision else (),
                                    tuple(opt.inertial_torque_groups), opt.interval_momentum_tolerance > 0,
                                    opt.upper_body_acceleration_limit > 0, len(self.env_pairs),
-                                   bool(opt.load_in_double_support_margin))
+                                   bool(opt.load_in_double_support_margin), float(opt.cop_margin_front))
+        self.sole_force_points = sole_force_points(self.structure.cop_margin_front)
         for oid in self.moving:  # an object set down in mid-air is refused here, before any solve
             for k in range(self.grid.K):
                 self.support_under(k, oid)
@@ -1074,14 +1075,14 @@ class ProblemData:
         stance = [f for f in FEET if self.contact(k, f) is not None]
         if len(stance) == 2 and opt.double_support_com_margin is not None:
             # along: the force points' span less the margin; across: the sole's force points
-            along = SOLE_FORCE_POINTS[:, 0] - SOLE_CENTER[0]
-            across = SOLE_FORCE_POINTS[:, 1] - SOLE_CENTER[1]
-            a = along.max() - opt.double_support_com_margin
-            b = across.max() - opt.double_support_com_margin
-            rows("CoM inside the double stance", k, [-a, -INF, -b, -INF], [INF, a, INF, b])
+            along = self.sole_force_points[:, 0] - SOLE_CENTER[0]
+            across = self.sole_force_points[:, 1] - SOLE_CENTER[1]
+            m = opt.double_support_com_margin
+            rows("CoM inside the double stance", k, [along.min() + m, -INF, across.min() + m, -INF],
+                 [INF, along.max() - m, INF, across.max() - m])
         if len(stance) == 1 and (opt.single_support_com_margin is not None
                                  or opt.single_support_com_lateral is not None):
-            along = SOLE_FORCE_POINTS[:, 0] - SOLE_CENTER[0]
+            along = self.sole_force_points[:, 0] - SOLE_CENTER[0]
             m_al = INF if opt.single_support_com_margin is None else opt.single_support_com_margin
             m_lat = INF if opt.single_support_com_lateral is None else opt.single_support_com_lateral
             rows(f"{stance[0]} CoM over the sole", k, [along.min() - m_al, -m_lat], [along.max() + m_al, m_lat])

@@ -54,6 +54,17 @@ SOLE_CENTER = SOLE_CORNERS.mean(axis=0)
 COP_MARGIN = np.array([0.02, 0.01])
 SOLE_FORCE_POINTS = SOLE_CORNERS - np.concatenate(
     [np.sign(SOLE_CORNERS[:, :2] - SOLE_CENTER[:2]) * COP_MARGIN, np.zeros((4, 1))], axis=1)
+
+
+def sole_force_points(front_margin: float = float(COP_MARGIN[0])) -> np.ndarray:
+    """The four corner force points of a sole with the toe-side points ``front_margin`` inside the
+    toe edge (``Options.cop_margin_front``; the heel and the sides keep ``COP_MARGIN``)."""
+    pts = SOLE_FORCE_POINTS.copy()
+    front = SOLE_CORNERS[:, 0] > SOLE_CENTER[0]
+    pts[front, 0] = SOLE_CORNERS[front, 0] - front_margin
+    return pts
+
+
 HAND_POINT = {"left_hand": np.array([0.10, 0.0, 0.0]), "right_hand": np.array([0.10, 0.0, 0.0])}
 LIMB_JOINT = {"left_foot": "left_ankle_roll_joint", "right_foot": "right_ankle_roll_joint",
               "left_hand": "left_wrist_yaw_joint", "right_hand": "right_wrist_yaw_joint"}

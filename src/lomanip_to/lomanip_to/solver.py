@@ -23,7 +23,7 @@ import numpy as np
 from .assembly import AssembledNLP, WindowDerivatives
 from .checks import penetration_per_knot, run_checks
 from .discretize import ProblemData, _lifts
-from .model import FEET, HANDS, LIMBS, SOLE_FORCE_POINTS, G1Model, rpy_to_rot
+from .model import FEET, HANDS, LIMBS, G1Model, rpy_to_rot
 from .problem import TO_NOT_CONVERGED, WALKING, Problem, validate_problem
 from .result import CAPPED_FEASIBLE_STATUS, STALLED_STATUS, Progress, SolverStats, TOResult, Violation
 from .transcription import Window
@@ -777,7 +777,7 @@ def extract(model: G1Model, data: ProblemData, win: Window, nlp: AssembledNLP, z
                 jid = model.limb_joint[limb]
                 tree = nums[k]["tree"]
                 for i in range(4):
-                    ci = tree["p"][jid] + tree["R"][jid] @ SOLE_FORCE_POINTS[i]
+                    ci = tree["p"][jid] + tree["R"][jid] @ data.sole_force_points[i]
                     T[k] += np.cross(ci - pt, u[i])
             else:
                 F[k] = Wm[W[f"u_{limb}"], k] * mg

@@ -49,7 +49,7 @@ import numpy as np
 
 from .hip_coupling import hip_roll_clearance
 from .layout import Layout, sx_split
-from .model import FEET, GRAVITY, HANDS, SOLE_FORCE_POINTS, G1Model, rpy_rate_matrix, rpy_to_rot, rot_z
+from .model import FEET, GRAVITY, HANDS, G1Model, rpy_rate_matrix, rpy_to_rot, rot_z, sole_force_points
 
 G = 9.81
 #: half size (m) of the hand contact patch (the G1 hand's palm pressed on a face) and the torsional
@@ -104,6 +104,8 @@ class Structure:
     env_pairs: int = 0
     #: the double-stance CoM rows count the carried objects' weight (Options.load_in_double_support_margin)
     load_in_support: bool = False
+    #: m the soles' toe-side force points lie inside the toe edge (Options.cop_margin_front)
+    cop_margin_front: float = 0.02
 
     def key(self) -> str:
         return hashlib.sha1(repr(self).encode()).hexdigest()[:12]
@@ -283,12 +285,13 @@ class Window:
         objs_b = [obj_state(wb, j) for j in range(M)]
 
         # ---- forces (robot scaled by m g)
+        sole_pts = sole_force_points(st.cop_margin_front)
         feet_pts = {}
         forces = []  # (point, u) acting on the robot
         for f in FEET:
             u = ca.reshape(wa[f"u_{f}"], 3, 4)
             jid = m.limb_joint[f]
-            pts = [tree["p"][jid] + tree["R"][jid] @ SOLE_FORCE_POINTS[i] for i in range(4)]
+            pts = [tree["p"][jid] + tree["R"][jid] @ sole_pts[i] for i in range(4)]
             feet_pts[f] = pts
             for i in range(4):
                 forces.append((pts[i], u[:, i]))
