@@ -793,3 +793,33 @@ def test_a_pushing_hand_off_its_contact_point_backs_out_along_the_normal():
     assert shift_along_normal({}, lambda n: 0.5 * tangent(n)) == pytest.approx(g.hand_backoff_max)  # bounded
     assert shift_along_normal({}, lambda n: -0.05 * n) == pytest.approx(0.0, abs=1e-9)  # inside, not aside
     assert shift_along_normal({"hand_tangential_backoff": 0.0}, lambda n: 0.05 * tangent(n)) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_grasp_normal_on_actual_object_turns_with_the_actual_pose():
+    """``grasp_normal_on_actual_object``: the grasp pyramid's normal is the plan's normal turned by
+    the object's actual-vs-planned rotation (a box rolled 0.3 rad in the hands gets pyramids about
+    its real faces); off (the default), the plan's normal whatever the box does."""
+    import mujoco
+
+    from lomanip_sim.frames import quat_to_matrix
+
+    sim, tr = simulation("case_lift_box")
+    contact = next(ph.contacts["left_hand"] for ph in tr.phases if "left_hand" in ph.contacts)
+    on = WholeBodyController(sim.world, tr, WbcGains(grasp_normal_on_actual_object=True))
+    off = WholeBodyController(sim.world, tr, WbcGains())
+    m, d = sim.model, sim.data
+    body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, sim.world.objects["box"].body_name)
+    adr = m.jnt_qposadr[m.body_jntadr[body]]
+    i = tr.n // 2
+    Rp = quat_to_matrix(tr.objects["box"][1][i])
+    roll = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(0.3), -np.sin(0.3)], [0.0, np.sin(0.3), np.cos(0.3)]])
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, (roll @ Rp).ravel())
+    d.qpos[adr + 3 : adr + 7] = q
+    mujoco.mj_kinematics(m, d)
+    n_plan = off._contact_normals(contact)[i]
+    n_off, turned_off = off._grasp_normal(contact, i, 0.0, d)
+    n_on, turned_on = on._grasp_normal(contact, i, 0.0, d)
+    assert not turned_off and np.allclose(n_off, n_plan)
+    assert turned_on and np.allclose(n_on, roll @ n_plan, atol=1e-6)
+    assert np.degrees(np.arccos(np.clip(n_on @ n_plan, -1, 1))) > 5.0  # the roll moves this normal

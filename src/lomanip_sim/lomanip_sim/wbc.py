@@ -172,6 +172,17 @@ class WbcGains:
     mu_grasp: float = 0.5  # the rubber hands' friction is 1.0: a margin of 2
     grasp_min_normal: float = 5.0  # N
     w_grasp_force: float = 1e-2  # per N^2 (1e-3 and 1e-4: S2 nominal fell after the set-down; docs/execution.md, session 36)
+    # the grasp pyramids (and patch moment rows) about the face's normal on the object's ACTUAL pose
+    # (the planned normal turned by the actual-vs-planned rotation) instead of the planned one. In
+    # S1's first carrying step the box turned 10-20 degrees from its plan; about the planned normals
+    # the QP asked 140 N up of one hand and 155 N down of the other against 40-80 N of real normal
+    # force, and the box rolled to 48 degrees. With this the box stays within 20 degrees through that
+    # step, but the QP then lets both squeezes drop to 10-18 N (a rolled box can rest on the lower
+    # hand) and the box is lost in the next step: S1 falls earlier (5.0 against 13.9 s on the plan with
+    # cop_margin_front 0.04; 5.6 against 6.4 s on the fixture's plan), S2 nominal succeeds either way.
+    # A floor on each hand's normal force (0.5-1 x the plan's) made every plan fall earlier. Off
+    # (docs/execution.md, session 38)
+    grasp_normal_on_actual_object: bool = False
     # s, see WholeBodyController._hand_offsets. Was 0.3: S1's plan brings the right hand (a point in
     # the TO) 2-4 cm over the box's front corner 0.6 s before the grasp, the 13 x 7 x 11 cm hand box
     # caught on that edge and the arm pushed the robot backwards (fell at 2.6 s)
@@ -921,10 +932,11 @@ class WholeBodyController:
         a, b, c = t1
         return t1, np.array([y * c - z * b, z * a - x * c, x * b - y * a])
 
-    def _pyramid(self, normal, mu: float) -> np.ndarray:
-        """(5,3) rows of a linearised friction cone: 4 tangent rows (<= 0) and the normal; cached per normal."""
+    def _pyramid(self, normal, mu: float, cache: bool = True) -> np.ndarray:
+        """(5,3) rows of a linearised friction cone: 4 tangent rows (<= 0) and the normal; cached per
+        normal unless ``cache`` is off (a normal that changes every step)."""
         key = (np.asarray(normal, float).tobytes(), mu)
-        rows = self._pyramids.get(key)
+        rows = self._pyramids.get(key) if cache else None
         if rows is None:
             n = np.asarray(normal, float) / max(np.linalg.norm(normal), 1e-9)
             t1, t2 = self._tangents(n)
@@ -932,7 +944,8 @@ class WholeBodyController:
                 rows = np.array([t1 + t2 - mu * n, t1 - t2 - mu * n, -t1 + t2 - mu * n, -t1 - t2 - mu * n, n])
             else:
                 rows = np.array([t1 - mu * n, -t1 - mu * n, t2 - mu * n, -t2 - mu * n, n])
-            self._pyramids[key] = rows
+            if cache:
+                self._pyramids[key] = rows
         return rows
 
     def _in_contact(self, limb: str) -> np.ndarray:
@@ -1041,7 +1054,8 @@ class WholeBodyController:
         return q
 
     def _grasp_rows(self, contacts: dict, hand_points: list, bhand: np.ndarray, Ahand: np.ndarray,
-                    H: np.ndarray, f: np.ndarray, col0: int, mom0: int | None, i: int):
+                    H: np.ndarray, f: np.ndarray, col0: int, mom0: int | None, i: int,
+                    data: mujoco.MjData | None = None, s: float = 0.0):
         """The hands' force rows of the QP: (lower, upper, equality flags) of ``Ahand``'s rows and the
         grasp rows (A, lower, upper). Each hand's force is fixed to ``bhand`` unless
         ``grasp_force_in_qp`` and it holds a carried object with another hand: then the first such
@@ -1069,9 +1083,9 @@ class WholeBodyController:
                     Ahand[3 * k0 : 3 * k0 + 3, c : c + 3] = np.eye(3)
                     Ahand[3 * k : 3 * k + 3] = 0.0
                     lo[3 * k : 3 * k + 3], hi[3 * k : 3 * k + 3], eq[3 * k : 3 * k + 3] = -1e30, 1e30, False
-                n = self._contact_normals(contacts[hand_points[k][0]])[i]
+                n, turned = self._grasp_normal(contacts[hand_points[k][0]], i, s, data)
                 A = np.zeros((5, nx))
-                A[:, c : c + 3] = self._pyramid(n, g.mu_grasp)
+                A[:, c : c + 3] = self._pyramid(n, g.mu_grasp, cache=not turned)
                 rows.append(A)
                 glo += [-1e30] * 4 + [g.grasp_min_normal]
                 ghi += [0.0] * 4 + [g.f_max]
@@ -1090,6 +1104,17 @@ class WholeBodyController:
                 f[c : c + 3] -= g.w_grasp_force * want
         A = np.vstack(rows) if rows else np.zeros((0, nx))
         return lo, hi, eq, A, np.array(glo, float), np.array(ghi, float)
+
+    def _grasp_normal(self, c, i: int, s: float, data: mujoco.MjData | None) -> tuple[np.ndarray, bool]:
+        """(unit normal of grasp contact ``c`` at grid time i + s, whether it was turned to the
+        object's actual pose): the plan's normal, or with ``grasp_normal_on_actual_object`` that
+        normal turned by the object's actual-vs-planned rotation."""
+        n = self._contact_normals(c)[i]
+        if self.g.grasp_normal_on_actual_object and data is not None:
+            fr = self._object_frames(data, c.object_id, i, s, lifted=True)
+            if fr is not None:
+                return fr[1] @ (fr[3].T @ n), True
+        return n, False
 
     def _carried_at(self, oid: str, i: int) -> bool:
         """Whether grid interval i has ``oid`` carried by the hands alone (its needed force is fed forward)."""
@@ -1421,7 +1446,7 @@ class WholeBodyController:
                 if g.push_feedforward_measured and touching and limb in self._push_force:
                     bhand[3 * k : 3 * k + 3] = self.measured_forces.get(limb, bhand[3 * k : 3 * k + 3])
         hand_lo, hand_hi, hand_eq, Agrasp, grasp_lo, grasp_hi = self._grasp_rows(
-            contacts, hand_points, bhand, Ahand, H, f, NJ + NV + nfoot, NJ + NV + nf if nm else None, i)
+            contacts, hand_points, bhand, Ahand, H, f, NJ + NV + nfoot, NJ + NV + nf if nm else None, i, data, s)
         # friction pyramids: 4 tangent rows + normal bounds per point
         Ain = np.zeros((5 * len(points), nx))
         bu = np.zeros(5 * len(points))
