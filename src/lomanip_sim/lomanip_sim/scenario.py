@@ -37,6 +37,12 @@ class CommonParams:
 
     name: ClassVar[str] = ""
     timestep: float = 0.002
+    #: MuJoCo's noslip post-solve (iterations; 0 = off). Why: MuJoCo's soft friction lets a contact
+    #: slip at a speed proportional to its load even inside the friction cone; a grasping hand crept
+    #: up S1's box at 5-6 cm/s. With 10 S1's plans get further (the fixture's plan falls at 6.4 s,
+    #: not 5.1), S2's nominal plan still executes to task success, and so do three push plans of
+    #: tools/bench_push.py; with 30 S2 nominal fell (docs/execution.md, sessions 37-38)
+    noslip_iterations: int = 10
     floor_friction: float = 1.0
     robot_position: Vec2 = (0.0, 0.0)
     robot_yaw: float = 0.0
@@ -120,7 +126,7 @@ SCENARIOS: dict[str, type[CommonParams]] = {S1BasketParams.name: S1BasketParams,
 # Keys that must be > 0 (masses, sizes, ...) and >= 0 (frictions, offsets).
 _POSITIVE_SUFFIXES = ("_mass", "_size", "timestep", "camera_width", "camera_height", "camera_fovy", "_radius",
                       "_wall", "_handle_height")  # fmt: skip
-_NON_NEGATIVE_SUFFIXES = ("_friction", "_setback", "_trail", "_resistance")
+_NON_NEGATIVE_SUFFIXES = ("_friction", "_setback", "_trail", "_resistance", "_iterations")
 
 
 def default_scenarios_path() -> Path:
