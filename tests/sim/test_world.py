@@ -119,3 +119,15 @@ def test_s2_geometry_sane(s2):
     # objects do not overlap at the start: trolley footprint clear of the table footprint
     t_xy, tr_xy = np.array(p.table_position), np.array(p.trolley_position)
     assert abs(t_xy[1] - tr_xy[1]) > (p.table_size[1] + p.trolley_size[1]) / 2
+
+
+def test_noslip_pass_is_a_scenario_parameter():
+    """MuJoCo's noslip post-solve runs 10 iterations by default (a held box does not creep in the
+    hands); 0 turns it off; a negative count is refused with a one-line ScenarioError."""
+    from lomanip_sim.scenario import ScenarioError, load_scenario
+    from lomanip_sim.world import build_world
+
+    assert build_world(load_scenario("s1_basket")).model.opt.noslip_iterations == 10
+    assert build_world(load_scenario("s2_trolley", {"noslip_iterations": 0})).model.opt.noslip_iterations == 0
+    with pytest.raises(ScenarioError, match="noslip_iterations"):
+        load_scenario("s1_basket", {"noslip_iterations": -1})
