@@ -181,3 +181,20 @@ def test_options_round_trip_the_switches(model, name):
     req = conv.request_from_problem(prob, model.joint_names)
     assert getattr(req.options, name) is True
     assert getattr(conv.options_from_msg(req.options), name) is True
+
+
+def test_options_round_trip_the_front_cop_margin(model):
+    """``cop_margin_front`` travels in TrajectoryOptions with the TO's default (0.02 m); a bad value
+    reaches the TO's validation, which refuses it before any solve."""
+    from lomanip_msgs.msg import TrajectoryOptions
+    from lomanip_to.problem import INVALID_REQUEST, Options, ProblemError, validate_problem
+
+    assert conv.options_from_msg(TrajectoryOptions()).cop_margin_front == Options().cop_margin_front == 0.02
+    prob = load_problem("case_one_step", model=model)
+    prob.options = prob.options.replaced(cop_margin_front=0.04)
+    req = conv.request_from_problem(prob, model.joint_names)
+    assert conv.options_from_msg(req.options).cop_margin_front == 0.04
+    prob.options = conv.options_from_msg(TrajectoryOptions(cop_margin_front=-0.01))
+    with pytest.raises(ProblemError) as e:
+        validate_problem(prob, model)
+    assert e.value.code == INVALID_REQUEST

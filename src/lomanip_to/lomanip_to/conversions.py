@@ -180,6 +180,7 @@ def options_from_msg(o: TrajectoryOptions, base: P.Options | None = None) -> P.O
         lift_with_previous_segment=bool(o.lift_with_previous_segment),
         load_in_double_support_margin=bool(o.load_in_double_support_margin),
         resting_object_dynamics=bool(o.resting_object_dynamics),
+        cop_margin_front=float(o.cop_margin_front),
         ipopt={**(base.ipopt if base is not None else {}),
                **{str(kv.name): P.parse_option_value(str(kv.value)) for kv in o.solver_options}},
         weights={**(base.weights if base is not None else {}), **{str(w.name): float(w.value) for w in o.weights}})
@@ -388,6 +389,7 @@ def request_from_problem(prob: P.Problem, joint_names):
         lift_with_previous_segment=bool(o.lift_with_previous_segment),
         load_in_double_support_margin=bool(o.load_in_double_support_margin),
         resting_object_dynamics=bool(o.resting_object_dynamics),
+        cop_margin_front=float(o.cop_margin_front),
         solver_options=[SolverOption(name=str(k), value=str(v)) for k, v in (o.ipopt or {}).items()],
         weights=[CostWeight(name=str(k), value=float(v)) for k, v in (o.weights or {}).items()])
     if prob.initial_configuration is not None:
