@@ -801,7 +801,7 @@ def test_grasp_normal_on_actual_object_turns_with_the_actual_pose():
     its real faces); off (the default), the plan's normal whatever the box does."""
     import mujoco
 
-    from lomanip_sim.frames import quat_to_matrix
+    from lomanip_sim.frames import axis_angle_to_quat, matrix_to_quat, quat_to_matrix
 
     sim, tr = simulation("case_lift_box")
     contact = next(ph.contacts["left_hand"] for ph in tr.phases if "left_hand" in ph.contacts)
@@ -812,10 +812,8 @@ def test_grasp_normal_on_actual_object_turns_with_the_actual_pose():
     adr = m.jnt_qposadr[m.body_jntadr[body]]
     i = tr.n // 2
     Rp = quat_to_matrix(tr.objects["box"][1][i])
-    roll = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(0.3), -np.sin(0.3)], [0.0, np.sin(0.3), np.cos(0.3)]])
-    q = np.zeros(4)
-    mujoco.mju_mat2Quat(q, (roll @ Rp).ravel())
-    d.qpos[adr + 3 : adr + 7] = q
+    roll = quat_to_matrix(axis_angle_to_quat([1.0, 0.0, 0.0], 0.3))
+    d.qpos[adr + 3 : adr + 7] = matrix_to_quat(roll @ Rp)
     mujoco.mj_kinematics(m, d)
     n_plan = off._contact_normals(contact)[i]
     n_off, turned_off = off._grasp_normal(contact, i, 0.0, d)

@@ -935,7 +935,7 @@ class WholeBodyController:
     def _pyramid(self, normal, mu: float, cache: bool = True) -> np.ndarray:
         """(5,3) rows of a linearised friction cone: 4 tangent rows (<= 0) and the normal; cached per
         normal unless ``cache`` is off (a normal that changes every step)."""
-        key = (np.asarray(normal, float).tobytes(), mu)
+        key = (np.asarray(normal, float).tobytes(), mu) if cache else None
         rows = self._pyramids.get(key) if cache else None
         if rows is None:
             n = np.asarray(normal, float) / max(np.linalg.norm(normal), 1e-9)
@@ -1054,8 +1054,8 @@ class WholeBodyController:
         return q
 
     def _grasp_rows(self, contacts: dict, hand_points: list, bhand: np.ndarray, Ahand: np.ndarray,
-                    H: np.ndarray, f: np.ndarray, col0: int, mom0: int | None, i: int,
-                    data: mujoco.MjData | None = None, s: float = 0.0):
+                    H: np.ndarray, f: np.ndarray, col0: int, mom0: int | None, i: int, s: float,
+                    data: mujoco.MjData):
         """The hands' force rows of the QP: (lower, upper, equality flags) of ``Ahand``'s rows and the
         grasp rows (A, lower, upper). Each hand's force is fixed to ``bhand`` unless
         ``grasp_force_in_qp`` and it holds a carried object with another hand: then the first such
@@ -1105,12 +1105,12 @@ class WholeBodyController:
         A = np.vstack(rows) if rows else np.zeros((0, nx))
         return lo, hi, eq, A, np.array(glo, float), np.array(ghi, float)
 
-    def _grasp_normal(self, c, i: int, s: float, data: mujoco.MjData | None) -> tuple[np.ndarray, bool]:
+    def _grasp_normal(self, c, i: int, s: float, data: mujoco.MjData) -> tuple[np.ndarray, bool]:
         """(unit normal of grasp contact ``c`` at grid time i + s, whether it was turned to the
         object's actual pose): the plan's normal, or with ``grasp_normal_on_actual_object`` that
         normal turned by the object's actual-vs-planned rotation."""
         n = self._contact_normals(c)[i]
-        if self.g.grasp_normal_on_actual_object and data is not None:
+        if self.g.grasp_normal_on_actual_object:
             fr = self._object_frames(data, c.object_id, i, s, lifted=True)
             if fr is not None:
                 return fr[1] @ (fr[3].T @ n), True
@@ -1446,7 +1446,7 @@ class WholeBodyController:
                 if g.push_feedforward_measured and touching and limb in self._push_force:
                     bhand[3 * k : 3 * k + 3] = self.measured_forces.get(limb, bhand[3 * k : 3 * k + 3])
         hand_lo, hand_hi, hand_eq, Agrasp, grasp_lo, grasp_hi = self._grasp_rows(
-            contacts, hand_points, bhand, Ahand, H, f, NJ + NV + nfoot, NJ + NV + nf if nm else None, i, data, s)
+            contacts, hand_points, bhand, Ahand, H, f, NJ + NV + nfoot, NJ + NV + nf if nm else None, i, s, data)
         # friction pyramids: 4 tangent rows + normal bounds per point
         Ain = np.zeros((5 * len(points), nx))
         bu = np.zeros(5 * len(points))

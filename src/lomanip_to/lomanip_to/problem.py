@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .model import FEET, HANDS, LIMBS
+from .model import COP_MARGIN, FEET, HANDS, LIMBS
 
 # lomanip_msgs/ErrorCode values (kept numerically identical; the conversion layer maps them)
 SUCCESS = 1
@@ -331,7 +331,7 @@ class Options:
     #: executed, the stance foot rolled onto its toe edge and the robot tipped forward at 5.1 s.
     #: With 0.04 the executed CoM stays within 3 cm of the plan through the lift and the first step
     #: (docs/execution.md, session 38). The default keeps every plan as before
-    cop_margin_front: float = 0.02
+    cop_margin_front: float = float(COP_MARGIN[0])
     #: the double-stance margin above counts the objects the hands carry (free in the phase, held
     #: by a hand) with the robot: their weight, at arm's length, is what moves the centre of
     #: pressure to the toes. Off by default (measured on S2 only, docs/to.md, session 34). Why: S2's
@@ -518,15 +518,15 @@ def validate_problem(prob: Problem, model=None) -> None:
     if bad:
         raise ProblemError(INVALID_REQUEST, f"options.inertial_torque_groups: unknown group(s) {', '.join(map(repr, bad))} "
                                             f"(known: {', '.join(TORQUE_GROUPS)})", "options")
-    for name, hi, rule in (("interval_momentum_tolerance", np.inf, ">= 0"), ("upper_body_acceleration_limit", np.inf, ">= 0"),
-                           ("upper_body_speed_limit", np.inf, ">= 0"), ("carry_reach", 1.0, "in [0, 1] m"),
-                           ("placement_tolerance", 1.0, "in [0, 1] m"),
-                           ("carried_object_clearance", 0.2, "in [0, 0.2] m"), ("dt_lift", 1.0, "in [0, 1] s"),
-                           ("cop_margin_front", 0.12, "in [0, 0.12] m")):
+    for name, hi, rule in (("interval_momentum_tolerance", np.inf, ">= 0 (0 = off)"),
+                           ("upper_body_acceleration_limit", np.inf, ">= 0 (0 = off)"),
+                           ("upper_body_speed_limit", np.inf, ">= 0 (0 = off)"), ("carry_reach", 1.0, "in [0, 1] m (0 = off)"),
+                           ("placement_tolerance", 1.0, "in [0, 1] m (0 = off)"),
+                           ("carried_object_clearance", 0.2, "in [0, 0.2] m (0 = off)"),
+                           ("dt_lift", 1.0, "in [0, 1] s (0 = off)"), ("cop_margin_front", 0.12, "in [0, 0.12] m")):
         val = getattr(prob.options, name)
         if not (np.isfinite(val) and 0 <= val <= hi):
-            off = "" if name == "cop_margin_front" else " (0 = off)"
-            raise ProblemError(INVALID_REQUEST, f"options.{name} must be {rule}{off}, not {val}", "options")
+            raise ProblemError(INVALID_REQUEST, f"options.{name} must be {rule}, not {val}", "options")
     ids = set()
     for i, o in enumerate(prob.objects):
         w = f"objects[{i}] ({o.id})"

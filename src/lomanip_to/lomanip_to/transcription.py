@@ -49,7 +49,7 @@ import numpy as np
 
 from .hip_coupling import hip_roll_clearance
 from .layout import Layout, sx_split
-from .model import FEET, GRAVITY, HANDS, G1Model, rpy_rate_matrix, rpy_to_rot, rot_z, sole_force_points
+from .model import COP_MARGIN, FEET, GRAVITY, HANDS, G1Model, rpy_rate_matrix, rpy_to_rot, rot_z, sole_force_points
 
 G = 9.81
 #: half size (m) of the hand contact patch (the G1 hand's palm pressed on a face) and the torsional
@@ -105,7 +105,7 @@ class Structure:
     #: the double-stance CoM rows count the carried objects' weight (Options.load_in_double_support_margin)
     load_in_support: bool = False
     #: m the soles' toe-side force points lie inside the toe edge (Options.cop_margin_front)
-    cop_margin_front: float = 0.02
+    cop_margin_front: float = float(COP_MARGIN[0])
 
     def key(self) -> str:
         return hashlib.sha1(repr(self).encode()).hexdigest()[:12]
