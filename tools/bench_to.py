@@ -164,6 +164,8 @@ def main(argv=None) -> int:
                     help="an Options field for every solve, e.g. --option guide_hessian=cost (repeatable)")
     ap.add_argument("--cell", action="append", default=[], metavar="KEY=VALUE[,KEY=VALUE]",
                     help="only the grid cells that match (repeatable), e.g. --cell box_mass=5.0,box_yaw=0.6")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=NUMBER", dest="params",
+                    help="a fixture parameter for every cell (repeatable), e.g. --set grip_z=0.0")
     ap.add_argument("--resolve", action="store_true",
                     help="solve each case a second time in the same process (cached build) and report it")
     ap.add_argument("--out", type=Path, default=ROOT / "runs" / "bench_to")
@@ -183,12 +185,18 @@ def main(argv=None) -> int:
     except ValueError:
         print(f"bench_to: --cell wants KEY=NUMBER[,KEY=NUMBER], got {a.cell}", file=sys.stderr)
         return 2
+    try:
+        params = {k: float(v) for k, _, v in (item.partition("=") for item in a.params)}
+    except ValueError:
+        print(f"bench_to: --set wants KEY=NUMBER, got {a.params}", file=sys.stderr)
+        return 2
     for sc in a.scenarios:
         cells = grid(sc) if a.full or wanted else grid(sc)[:1]
         if wanted:
             cells = [c for c in cells if any(all(k in c and abs(float(c[k]) - v) < 1e-9 for k, v in w.items())
                                              for w in wanted)]
-        for over, variant in itertools.product(cells, a.variants):
+        for cell, variant in itertools.product(cells, a.variants):
+            over = {**cell, **params}
             try:
                 r = run_case(model, sc, over, variant, a.out, a.time_limit, extra, a.resolve)
             except ProblemError as exc:  # a bad --option (or problem) is refused before any solve

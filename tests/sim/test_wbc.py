@@ -821,3 +821,39 @@ def test_grasp_normal_on_actual_object_turns_with_the_actual_pose():
     assert not turned_off and np.allclose(n_off, n_plan)
     assert turned_on and np.allclose(n_on, roll @ n_plan, atol=1e-6)
     assert np.degrees(np.arccos(np.clip(n_on @ n_plan, -1, 1))) > 5.0  # the roll moves this normal
+
+
+@pytest.mark.parametrize("weight", [1000.0, 0.0])
+def test_grasp_moment_rows_give_the_carried_box_the_moment_its_orientation_needs(weight):
+    """``w_grasp_moment`` (on by default): while two hands carry the box, the moment the QP's hand
+    forces and patch moments put on it about its CoM is the one that turns it towards its planned
+    orientation (``_grasp_moment_rows``). Without the rows only the forces' sum is fixed and the QP
+    spends their split as a moment of its own (about 1 N m here) that the box can only return by
+    turning."""
+    sim, tr = simulation("case_lift_box")
+    P = tr.objects["box"][0]
+    wbc = WholeBodyController(sim.world, tr, WbcGains(w_grasp_moment=weight))
+    sim.set_controller(wbc)
+    d = sim.data
+    body = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, sim.world.objects["box"].body_name)
+    residuals = []
+    while wbc.status.t_ref < tr.duration:
+        sim.step()
+        t = wbc.status.t_ref
+        i, s = tr.index_at(t)
+        c = tr.phase_at(t).contacts
+        if not ({"left_hand", "right_hand"} <= set(c) and wbc._carried_at("box", i) and P[i, 2] > P[0, 2] + 0.02):
+            continue
+        forces = {limb: wbc.last_forces.get(limb) for limb in ("left_hand", "right_hand")}
+        if any(f is None or np.linalg.norm(f) < 1e-6 for f in forces.values()):
+            continue
+        com = d.xipos[body]
+        on_box = sum(-np.cross(d.site_xpos[wbc.site_id[limb]] - com, f) - wbc.last_hand_moments.get(limb, np.zeros(3))
+                     for limb, f in forces.items())
+        _A, wanted = wbc._grasp_moment_rows(d, "box", [], [], [], 1, i, s)
+        residuals.append(np.linalg.norm(on_box - wanted))
+    assert len(residuals) > 50 and not sim.has_fallen()
+    if weight > 0:
+        assert max(residuals) < 0.05  # N m (measured < 0.005)
+    else:
+        assert max(residuals) > 0.3  # measured 1.26

@@ -183,6 +183,18 @@ class WbcGains:
     # A floor on each hand's normal force (0.5-1 x the plan's) made every plan fall earlier. Off
     # (docs/execution.md, session 38)
     grasp_normal_on_actual_object: bool = False
+    # The moment the hands' forces and patch moments put on a carried object about its actual CoM is
+    # drawn to I (kp e_R - kd w) + w x I w: what turns it towards its planned orientation
+    # (``w_grasp_moment`` per (N m)^2; 0 = off). Why: with only the forces' sum fixed, the QP used
+    # the hands' opposite shear forces as a free moment on the robot (a balance actuator); the box
+    # can return that moment only by turning, so physics gave a different split and the box rolled
+    # about the line between the hands: S2 nominal set it down on its side (tilt 90 degrees).
+    # With 1000: upright (0 degrees) and task success in 7 of 7 model errors of S2 nominal's plan
+    # (box mass 2.0 / 3.0 kg, trolley 6 / 10 kg, wheel resistance x0.5 / x2; without: 5 of 7, the
+    # box-mass errors fall); S1 and S2 at 5 kg fall either way (docs/execution.md, session 39)
+    w_grasp_moment: float = 1000.0
+    grasp_orientation_kp: float = 100.0  # 1/s^2
+    grasp_orientation_kd: float = 20.0  # 1/s
     # s, see WholeBodyController._hand_offsets. Was 0.3: S1's plan brings the right hand (a point in
     # the TO) 2-4 cm over the box's front corner 0.6 s before the grasp, the 13 x 7 x 11 cm hand box
     # caught on that edge and the arm pushed the robot backwards (fell at 2.6 s)
@@ -1102,8 +1114,38 @@ class WholeBodyController:
                             ghi.append(0.0)
                 H[c : c + 3, c : c + 3] += g.w_grasp_force * np.eye(3)
                 f[c : c + 3] -= g.w_grasp_force * want
+            if g.w_grasp_moment > 0.0:
+                Am, tau_des = self._grasp_moment_rows(data, contacts[hand_points[k0][0]].object_id,
+                                                      [hand_points[k][0] for k in ks], [col0 + 3 * k for k in ks],
+                                                      [mom0 + 3 * k for k in ks] if mom0 is not None else [],
+                                                      nx, i, s)
+                H += g.w_grasp_moment * (Am.T @ Am)
+                f -= g.w_grasp_moment * (Am.T @ tau_des)
         A = np.vstack(rows) if rows else np.zeros((0, nx))
         return lo, hi, eq, A, np.array(glo, float), np.array(ghi, float)
+
+    def _grasp_moment_rows(self, data: mujoco.MjData, oid: str, limbs: list[str], fcols: list[int],
+                           mcols: list[int], nx: int, i: int, s: float) -> tuple[np.ndarray, np.ndarray]:
+        """(A (3, nx), tau (3,)): A x is the moment the hands put on object ``oid`` about its actual CoM
+        (the QP's forces and patch moments act on the robot, the object gets their opposites); tau is
+        the moment that turns the object towards its planned orientation with the object's inertia."""
+        g = self.g
+        A = np.zeros((3, nx))
+        fr = self._object_frames(data, oid, i, s, lifted=True)
+        b = self._object_body[oid][0] if oid in self._object_body else -1
+        if fr is None or b < 0:
+            return A, np.zeros(3)
+        c_act, R_act, _c_plan, R_plan = fr
+        for limb, col in zip(limbs, fcols):
+            A[:, col : col + 3] = -_skew(data.site_xpos[self.site_id[limb]] - c_act)
+        for col in mcols:
+            A[:, col : col + 3] = -np.eye(3)
+        Ri = data.ximat[b].reshape(3, 3)
+        inertia = Ri @ np.diag(self.model.body_inertia[b]) @ Ri.T
+        mujoco.mj_objectVelocity(self.model, data, mujoco.mjtObj.mjOBJ_BODY, b, self._vel6, 0)
+        w = self._vel6[:3]
+        alpha = g.grasp_orientation_kp * _rot_error(R_plan, R_act) - g.grasp_orientation_kd * w
+        return A, inertia @ alpha + np.cross(w, inertia @ w)
 
     def _grasp_normal(self, c, i: int, s: float, data: mujoco.MjData) -> tuple[np.ndarray, bool]:
         """(unit normal of grasp contact ``c`` at grid time i + s, whether it was turned to the
