@@ -15,11 +15,19 @@ a video (MP4, or GIF without an MP4 encoder), PNG frames, tracking.png, forces.p
     .venv/bin/python tools/bench_exec.py                          # the three TO test cases (~2.5 min)
     .venv/bin/python tools/bench_exec.py --cases case_stand --problems s1_basket
     .venv/bin/python tools/bench_exec.py --cases --gains '{"grasp_squeeze_scale": 2.0}'   # controller gains
+    .venv/bin/python tools/bench_exec.py --cases --bench-to runs/bench_to \
+        --world box_mass=2.0 --world box_mass=3.0 --world trolley_mass=6.0,wheel_rolling_resistance=3.0
+
+``--world`` executes every saved S1/S2 plan once more in a world with model errors: scenario
+overrides applied to the simulated world only, the plan unchanged (it was made for the world its
+benchmark solved). Each such run is labelled ``<case>@<overrides>``; a world key the scenario does not
+have is refused with a one-line error before anything runs.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import time
 from pathlib import Path
@@ -71,8 +79,43 @@ def cases(args) -> list[tuple[str, str, dict, Path | None]]:
     return out
 
 
+def parse_worlds(specs: list[str]) -> list[dict]:
+    """``--world`` values (``KEY=VALUE[,KEY=VALUE]``, YAML values) as override dicts; ValueError
+    naming the bad item."""
+    worlds = []
+    for spec in specs:
+        world = {}
+        for item in re.split(r",(?=\s*[A-Za-z_]\w*\s*=)", spec):  # commas inside [a, b] stay
+            key, sep, value = item.partition("=")
+            if not sep or not key.strip():
+                raise ValueError(f"bad --world item {item!r} (want KEY=VALUE, e.g. box_mass=3.0)")
+            world[key.strip()] = yaml.safe_load(value)
+        worlds.append(world)
+    return worlds
+
+
+def check_worlds(worlds: list[dict], problems: set[str]) -> None:
+    """Every ``--world`` key must be a parameter of each scenario it will change (ValueError if not)."""
+    from lomanip_sim.scenario import load_scenario
+    from lomanip_to import fixtures
+
+    for problem in sorted(problems):
+        scenario = yaml.safe_load(Path(fixtures.config_path(problem)).read_text()).get("scenario")
+        for world in worlds:
+            if not scenario:
+                raise ValueError(f"--world {world}: {problem} has no lomanip_sim scenario to change")
+            try:
+                load_scenario(scenario, world)
+            except ValueError as e:  # lomanip_sim.scenario.ScenarioError: unknown key, bad value
+                raise ValueError(f"--world {world} for {scenario}: {e}") from None
+
+
+def world_label(world: dict) -> str:
+    return ",".join(f"{k}={v}" for k, v in world.items())
+
+
 def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_root: Path, video: bool,
-             gains=None) -> dict:
+             gains=None, world: dict | None = None) -> dict:
     from lomanip_sim.execution import Execution
     from lomanip_sim.media import save_run
     from lomanip_sim.trajectory import TrajectoryError, from_to_result
@@ -85,11 +128,11 @@ def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_
     solve_s = time.perf_counter() - t0
     if res.t is None:
         res.densify()
-    row = {"case": label, "problem": problem, "overrides": overrides, "to_converged": bool(res.success),
-           "to_time_s": round(solve_s, 1) if saved is None else None}
+    row = {"case": label, "problem": problem, "overrides": overrides, "world": dict(world or {}),
+           "to_converged": bool(res.success), "to_time_s": round(solve_s, 1) if saved is None else None}
     try:
         traj = from_to_result(res, prob.phases)
-        sim, scenario = plan_world(problem, overrides, prob, traj.qpos(0))
+        sim, scenario = plan_world(problem, {**overrides, **(world or {})}, prob, traj.qpos(0))
         traj.scenario = scenario
         ex = Execution(sim, traj, gains=gains)
     except TrajectoryError as e:
@@ -119,25 +162,41 @@ def main() -> int:
     ap.add_argument("--out", default="runs/bench_exec")
     ap.add_argument("--no-video", action="store_true")
     ap.add_argument("--gains", default="{}", help='WbcGains overrides as JSON, e.g. \'{"grasp_squeeze_scale": 2.0}\'')
+    ap.add_argument("--world", action="append", default=[], metavar="KEY=VALUE[,KEY=VALUE]",
+                    help="also execute every saved S1/S2 plan in a world with these scenario overrides "
+                         "(model errors, the plan unchanged; repeatable), e.g. --world box_mass=3.0")
     args = ap.parse_args()
     try:
         gains = gains_from_json(args.gains)
+        worlds = parse_worlds(args.world)
     except ValueError as e:
         print(f"bench_exec: {e}", file=sys.stderr)
         return 2
+    todo = cases(args)
+    if worlds:
+        try:
+            check_worlds(worlds, {problem for _l, problem, _o, saved in todo if saved is not None})
+        except ValueError as e:
+            print(f"bench_exec: {e}", file=sys.stderr)
+            return 2
+    runs = [(c, None) for c in todo]
+    runs += [(c, w) for c in todo if c[3] is not None for w in worlds]
     out_root = ROOT / args.out
     out_root.mkdir(parents=True, exist_ok=True)
     rows = []
-    hdr = (f"{'case':<28}{'TO':>5}{'success':>9}{'fell':>6}{'base max/rms cm':>17}{'joint max/rms rad':>19}"
+    width = max([28] + [len(c[0]) + len(world_label(w or {})) + 3 for c, w in runs])
+    hdr = (f"{'case':<{width}}{'TO':>5}{'success':>9}{'fell':>6}{'base max/rms cm':>17}{'joint max/rms rad':>19}"
            f"{'obj cm/tilt rad':>16}{'RTF':>6}{'QPfail':>7}")
     print(hdr)
-    for label, problem, overrides, saved in cases(args):
-        row = run_case(label, problem, overrides, saved, out_root, not args.no_video, gains)
+    for (label, problem, overrides, saved), world in runs:
+        if world is not None:
+            label = f"{label}@{world_label(world)}"
+        row = run_case(label, problem, overrides, saved, out_root, not args.no_video, gains, world)
         rows.append(row)
         if "error" in row:
-            print(f"{label:<28}{'yes' if row['to_converged'] else 'no':>5}  refused: {row['error']}")
+            print(f"{label:<{width}}{'yes' if row['to_converged'] else 'no':>5}  refused: {row['error']}")
             continue
-        print(f"{label:<28}{'yes' if row['to_converged'] else 'no':>5}{str(row['task_success']):>9}{str(row['fell']):>6}"
+        print(f"{label:<{width}}{'yes' if row['to_converged'] else 'no':>5}{str(row['task_success']):>9}{str(row['fell']):>6}"
               f"{100 * row['max_base_position_error']:>9.2f}/{100 * row['rms_base_position_error']:<7.2f}"
               f"{row['max_joint_error']:>10.3f}/{row['rms_joint_error']:<8.3f}"
               f"{100 * row['final_object_position_error']:>10.1f}/{row['final_object_tilt_error']:<5.2f}"
