@@ -1,4 +1,5 @@
-"""A converged guide warm-starts the final stage only when its point is near the final stage's rows."""
+"""A converged guide warm-starts the final stage only when its point is near the final stage's rows
+(``Options.final_warm_start_max_violation``)."""
 from lomanip_to import solver
 from lomanip_to.fixtures import load_problem
 
@@ -18,13 +19,15 @@ def _lift_box(g1):
     return replace(prob, options=replace(prob.options, weights={**(prob.options.weights or {}), "w_force_rate": 10.0}))
 
 
-def test_final_stage_is_warm_started_near_and_cold_started_far(g1, monkeypatch):
+def test_final_stage_is_warm_started_near_and_cold_started_far(g1):
+    from dataclasses import replace
+
     res = solver.solve(_lift_box(g1), g1)
     assert res.success and _final_stage(res)["start"] == "warm"
 
     # with no tolerated start violation, the same final stage starts from the guide's point cold
-    monkeypatch.setattr(solver, "WARM_START_MAX_VIOLATION", -1.0)
-    cold = solver.solve(_lift_box(g1), g1)
+    prob = _lift_box(g1)
+    cold = solver.solve(replace(prob, options=replace(prob.options, final_warm_start_max_violation=0.0)), g1)
     assert _final_stage(cold)["start"] == "cold"
     assert cold.stats.converged, cold.stats.status_message()
 
@@ -47,3 +50,15 @@ def test_start_violation_is_measured_against_the_stage_bounds(g1):
     g = np.array(nlp.F_nlp(np.clip(z, args["lbx"], args["ubx"]), args["p"])[1]).ravel()
     tight = dict(args, lbg=np.where(np.isfinite(args["lbg"]), g + 1.0, args["lbg"]))
     assert solver._start_violation(wd, data, data.grid.K, 2, win, z, tight, hom=False) >= 1.0 - 1e-9
+
+
+def test_final_warm_start_bound_is_validated(g1):
+    import pytest
+    from dataclasses import replace
+
+    from lomanip_to.problem import ProblemError, validate_problem
+
+    prob = load_problem("case_stand", model=g1)
+    for bad in (-1.0, float("nan")):
+        with pytest.raises(ProblemError, match="final_warm_start_max_violation"):
+            validate_problem(replace(prob, options=replace(prob.options, final_warm_start_max_violation=bad)), g1)

@@ -277,6 +277,17 @@ class Options:
     guide_hessian: str = "exact"
     final_hessian: str = "exact"
     print_level: int = 0
+    #: a converged guide hands the final stage a primal-dual warm start (barrier 1e-4) only when its
+    #: point violates the final stage's rows by at most this much; farther, the final stage starts
+    #: from the guide's point with a fresh barrier. Why 1e-2: farther away, the small barrier sent
+    #: S1's first subtask from the graph (keyframes of session 6) wandering (objective 150 -> 8e3)
+    #: into a MUMPS factorisation that stalled for minutes; started cold from the same point the
+    #: stage took 178 iterations, 48 s. On S1 the guide's point misses the hard collision rows by 1.2-2.5 cm, so every
+    #: final stage starts cold. With 1.0 (any start): S1 2.5 kg / yaw 1.2 converges and passes every
+    #: check (982 iterations; at the default its pick stops at the cap), S1 5.0 kg gets past its pick
+    #: and stops in the carry, and S1 nominal takes 1015 iterations instead of 1271 but its plan fails
+    #: the check between knots (1.45, limit 1). An option, not the default (docs/to.md, session 39)
+    final_warm_start_max_violation: float = 1e-2
     #: solve subtask by subtask (at rest at subtask boundaries), stitch, then polish the whole horizon
     subtask_segments: bool = True
     #: also cut a subtask's segment at its internal rest points (:func:`lomanip_to.solver.rest_points`:
@@ -523,7 +534,8 @@ def validate_problem(prob: Problem, model=None) -> None:
                            ("upper_body_speed_limit", np.inf, ">= 0 (0 = off)"), ("carry_reach", 1.0, "in [0, 1] m (0 = off)"),
                            ("placement_tolerance", 1.0, "in [0, 1] m (0 = off)"),
                            ("carried_object_clearance", 0.2, "in [0, 0.2] m (0 = off)"),
-                           ("dt_lift", 1.0, "in [0, 1] s (0 = off)"), ("cop_margin_front", 0.12, "in [0, 0.12] m")):
+                           ("dt_lift", 1.0, "in [0, 1] s (0 = off)"), ("cop_margin_front", 0.12, "in [0, 0.12] m"),
+                           ("final_warm_start_max_violation", np.inf, ">= 0")):
         val = getattr(prob.options, name)
         if not (np.isfinite(val) and 0 <= val <= hi):
             raise ProblemError(INVALID_REQUEST, f"options.{name} must be {rule}, not {val}", "options")

@@ -46,12 +46,6 @@ GUIDE_STAGE_MAX_ITER = 300
 #: tolerances, the last ~180 of them reducing the objective from 279 to 138 at constant violation)
 GUIDE_STAGE_TOLERANCES = {"tol": 1e-2, "acceptable_tol": 1e-1, "acceptable_constr_viol_tol": 1e-2,
                           "acceptable_iter": 3}
-#: A converged guide hands the final stage a primal-dual warm start (barrier 1e-4) only when its
-#: point violates the final stage's rows by at most this much.  Farther away, the small barrier
-#: sent S1's first subtask from the graph (keyframes of session 6) wandering (objective 150 -> 8e3)
-#: into a MUMPS factorisation that stalled for minutes; started cold from the same point the stage
-#: took 178 iterations, 48 s.
-WARM_START_MAX_VIOLATION = 1e-2
 #: the stall acceptance counts an iterate within this many times constr_tol whose objective lies
 #: well below the best feasible one as progress.  Why: a demo push stalled on its best feasible
 #: iterate (objective 884) while ipopt's iterates, at violations of 1e-3, had come down to 58 and
@@ -266,7 +260,7 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
                 o.update(GUIDE_STAGE_TOLERANCES)
                 tag = "guide"
         elif lam_x is not None and warm_ok and _start_violation(
-                wd, data, K, threads, win, z0, args, hom) <= WARM_START_MAX_VIOLATION:
+                wd, data, K, threads, win, z0, args, hom) <= opt.final_warm_start_max_violation:
             # the previous stage converged near this one's feasible set: primal-dual warm start
             # with a small barrier
             args["x0"] = np.clip(z0, args["lbx"], args["ubx"])
