@@ -51,6 +51,19 @@ def _lift_box_let_go(let_go: float):
     return sim, dataclasses.replace(tr, phases=phases)
 
 
+def _carried_steps(sim, tr, wbc):
+    """Step case_lift_box's plan to its end; yields (i, s, contacts) at each step where both hands
+    hold the box the plan has lifted more than 2 cm (its needed force fed forward)."""
+    P = tr.objects["box"][0]
+    while wbc.status.t_ref < tr.duration:
+        sim.step()
+        t = wbc.status.t_ref
+        i, s = tr.index_at(t)
+        c = tr.phase_at(t).contacts
+        if {"left_hand", "right_hand"} <= set(c) and wbc._carried_at("box", i) and P[i, 2] > P[0, 2] + 0.02:
+            yield i, s, c
+
+
 def test_stand_plan_tracked_tightly():
     sim, tr = simulation("case_stand")
     wbc, eb, ej, _ejr, _ = _track(sim, tr, tr.duration + 0.5)
@@ -315,18 +328,11 @@ def test_grasp_forces_chosen_by_the_qp_keep_their_sum_and_stay_in_their_pyramids
     normal, however large the squeeze asked for (20 times the plan's here: fixed, that asks for
     more than the arms' torque limits give)."""
     sim, tr = simulation("case_lift_box")
-    P = tr.objects["box"][0]
     gains = WbcGains(grasp_force_in_qp=True, grasp_squeeze_scale=20.0, mu_grasp=0.5)
     wbc = WholeBodyController(sim.world, tr, gains)
     sim.set_controller(wbc)
     seen, squeezed = 0, 0.0
-    while wbc.status.t_ref < tr.duration:
-        sim.step()
-        t = wbc.status.t_ref
-        i, s = tr.index_at(t)
-        c = tr.phase_at(t).contacts
-        if not ({"left_hand", "right_hand"} <= set(c) and wbc._carried_at("box", i) and P[i, 2] > P[0, 2] + 0.02):
-            continue
+    for i, s, c in _carried_steps(sim, tr, wbc):
         want = [wbc.hand_feedforward(l, c, i, s) for l in ("left_hand", "right_hand")]
         got = [wbc.last_forces[l] for l in ("left_hand", "right_hand")]
         if min(np.linalg.norm(f) for f in got) < 1e-6:  # a hand that lost the box: no force (hand_lost_time)
@@ -831,19 +837,12 @@ def test_grasp_moment_rows_give_the_carried_box_the_moment_its_orientation_needs
     spends their split as a moment of its own (about 1 N m here) that the box can only return by
     turning."""
     sim, tr = simulation("case_lift_box")
-    P = tr.objects["box"][0]
     wbc = WholeBodyController(sim.world, tr, WbcGains(w_grasp_moment=weight))
     sim.set_controller(wbc)
     d = sim.data
     body = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, sim.world.objects["box"].body_name)
     residuals = []
-    while wbc.status.t_ref < tr.duration:
-        sim.step()
-        t = wbc.status.t_ref
-        i, s = tr.index_at(t)
-        c = tr.phase_at(t).contacts
-        if not ({"left_hand", "right_hand"} <= set(c) and wbc._carried_at("box", i) and P[i, 2] > P[0, 2] + 0.02):
-            continue
+    for i, s, _c in _carried_steps(sim, tr, wbc):
         forces = {limb: wbc.last_forces.get(limb) for limb in ("left_hand", "right_hand")}
         if any(f is None or np.linalg.norm(f) < 1e-6 for f in forces.values()):
             continue
