@@ -1131,10 +1131,10 @@ class WholeBodyController:
         the moment that turns the object towards its planned orientation with the object's inertia."""
         g = self.g
         A = np.zeros((3, nx))
-        fr = self._object_frames(data, oid, i, s, lifted=True)
-        b = self._object_body[oid][0] if oid in self._object_body else -1
-        if fr is None or b < 0:
+        fr = self._object_frames(data, oid, i, s, lifted=True)  # None unless the body exists
+        if fr is None:
             return A, np.zeros(3)
+        b = self._object_body[oid][0]
         c_act, R_act, _c_plan, R_plan = fr
         for limb, col in zip(limbs, fcols):
             A[:, col : col + 3] = -_skew(data.site_xpos[self.site_id[limb]] - c_act)

@@ -282,11 +282,12 @@ class Options:
     #: from the guide's point with a fresh barrier. Why 1e-2: farther away, the small barrier sent
     #: S1's first subtask from the graph (keyframes of session 6) wandering (objective 150 -> 8e3)
     #: into a MUMPS factorisation that stalled for minutes; started cold from the same point the
-    #: stage took 178 iterations, 48 s. On S1 the guide's point misses the hard collision rows by 1.2-2.5 cm, so every
-    #: final stage starts cold. With 1.0 (any start): S1 2.5 kg / yaw 1.2 converges and passes every
-    #: check (982 iterations; at the default its pick stops at the cap), S1 5.0 kg gets past its pick
-    #: and stops in the carry, and S1 nominal takes 1015 iterations instead of 1271 but its plan fails
-    #: the check between knots (1.45, limit 1). An option, not the default (docs/to.md, session 39)
+    #: stage took 178 iterations, 48 s. On S1 the guide's point misses the hard collision rows by
+    #: 1.2-2.5 cm, so every final stage starts cold. With 1.0 (any start): S1 2.5 kg / yaw 1.2
+    #: converges and passes every check (982 iterations; at the default its pick stops at the cap),
+    #: S1 5.0 kg gets past its pick and stops in the carry, S1 nominal takes 1015 iterations instead
+    #: of 1271 but fails the check between knots (1.45, limit 1), and S2 nominal's faster plan falls
+    #: when executed. An option, not the default (docs/to.md, session 39)
     final_warm_start_max_violation: float = 1e-2
     #: solve subtask by subtask (at rest at subtask boundaries), stitch, then polish the whole horizon
     subtask_segments: bool = True
