@@ -152,14 +152,6 @@ def self_pairs(model: G1Model) -> tuple:
 SOLE_EDGE_MARGIN = 0.06
 #: sine of the largest tilt of a swing sole (3 deg: heel/toe at most ~5 mm lower than the sole centre)
 SWING_TILT = 0.05
-#: limb and waist joint torques are held to this fraction of the G1 limits in the TO (quasi-static rows), so
-#: that the inertia the rows leave out still fits under the limit in the a-posteriori RNEA check
-TORQUE_MARGIN = 0.8
-#: the same for the rows that carry the inertia of the links beyond the joint
-#: (Options.inertial_torque_groups). Kept at 0.8: with 0.9 S1's subtask 0 (walk to the box,
-#: squat) stopped at its iteration cap, where it had converged in six solves at 0.8 (docs/to.md,
-#: session 12); the margin then also covers the interpolation between knots
-DYNAMIC_TORQUE_MARGIN = 0.8
 #: least lateral distance (m) of the sole centres in the base's frame (the hips are 0.24 m apart):
 #: keeps the legs from crossing, including between knots where the sphere pairs are not checked
 FEET_MIN_LATERAL = 0.10
@@ -439,9 +431,8 @@ class ProblemData:
 
     def _torque_margins(self) -> np.ndarray:
         """Bound of each torque row as a fraction of the joint's limit, in the window's row order."""
-        dynamic = self.structure.inertial_groups
-        return np.concatenate([np.full(len(js), DYNAMIC_TORQUE_MARGIN if g in dynamic else TORQUE_MARGIN)
-                               for g, (js, _) in self.model.torque_row_joints.items()])
+        n = sum(len(js) for js, _ in self.model.torque_row_joints.values())
+        return np.full(n, self.prob.options.torque_margin)
 
     def rest_height(self, oid: str, support: str) -> float:
         """World height of ``oid``'s origin when it rests on ``support``."""

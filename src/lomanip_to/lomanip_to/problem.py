@@ -362,6 +362,11 @@ class Options:
     #: with the arms dynamic S1's carry did not converge (docs/to.md, session 12). The physical
     #: check counts the inertia of every joint whatever this says
     inertial_torque_groups: tuple = ("waist",)
+    #: fraction of each G1 joint torque limit the TO's torque rows allow at the knots (both the
+    #: quasi-static and the inertial rows). 0.8 leaves room for the inertia the quasi-static rows
+    #: leave out and for the motion between knots; a smaller value leaves the controller headroom
+    #: for its feedback (S1's dense plan needs up to 0.99 of the waist pitch's limit at 0.8)
+    torque_margin: float = 0.8
     #: kg m^2/s: the angular momentum of each interval's velocity, taken at the interval's first knot,
     #: stays within this of the momentum at its last knot (0 = off). The dynamics hold at knots
     #: 0.1-0.2 s apart, and a velocity that carries little momentum at one end and a lot at the
@@ -536,9 +541,10 @@ def validate_problem(prob: Problem, model=None) -> None:
                            ("placement_tolerance", 1.0, "in [0, 1] m (0 = off)"),
                            ("carried_object_clearance", 0.2, "in [0, 0.2] m (0 = off)"),
                            ("dt_lift", 1.0, "in [0, 1] s (0 = off)"), ("cop_margin_front", 0.12, "in [0, 0.12] m"),
-                           ("final_warm_start_max_violation", np.inf, ">= 0")):
+                           ("final_warm_start_max_violation", np.inf, ">= 0"),
+                           ("torque_margin", 1.0, "in (0, 1]")):
         val = getattr(prob.options, name)
-        if not (np.isfinite(val) and 0 <= val <= hi):
+        if not (np.isfinite(val) and 0 <= val <= hi) or (name == "torque_margin" and val == 0):
             raise ProblemError(INVALID_REQUEST, f"options.{name} must be {rule}, not {val}", "options")
     ids = set()
     for i, o in enumerate(prob.objects):
