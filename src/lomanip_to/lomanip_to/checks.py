@@ -97,8 +97,9 @@ def penetration_per_knot(model: G1Model, data, res):
             for s_idx, s in enumerate(model.spheres):
                 if not data._pair_enabled(k, s_idx, o.id):
                     continue
+                allowed = max(-data._clearance(s_idx, k, o.id), 0.0)  # a held object's forearm allowance
                 for (c, R, he) in prims:
-                    d = sphere_box_distance(cs[s_idx], c, R, he, s.radius)
+                    d = sphere_box_distance(cs[s_idx], c, R, he, s.radius) + allowed
                     if d < 0:
                         depth.append(-d)
         for s_idx, s in enumerate(model.spheres):
@@ -193,6 +194,9 @@ def penetration_between_knots(model: G1Model, data, res, rate: float = 50.0):
             enabled[k, oid] = np.array([data._pair_enabled(k, i, oid) for i in range(len(radii))])
         return enabled[k, oid]
 
+    def allowed(k, oid):  # a held object's forearm allowance (Options.forearm_clear_of_held_object)
+        return np.array([max(-data._clearance(i, k, oid), 0.0) for i in range(len(radii))])
+
     worst, where = 0.0, 0.0
     for i, t in enumerate(dense.t):
         k = int(np.searchsorted(tk, t, side="right")) - 1
@@ -211,7 +215,7 @@ def penetration_between_knots(model: G1Model, data, res, rate: float = 50.0):
             for (c, R, he) in prims:
                 q = np.abs((cs - c) @ R) - he  # per sphere, in the primitive's frame
                 d = np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0) - radii
-                d = np.where(mask, -d, 0.0)
+                d = np.where(mask, -d - np.minimum(allowed(k, o.id), allowed(k + 1, o.id)), 0.0)
                 j = int(np.argmax(d))
                 if d[j] > worst:
                     worst, where = float(d[j]), float(t)

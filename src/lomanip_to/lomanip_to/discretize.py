@@ -150,6 +150,14 @@ def self_pairs(model: G1Model) -> tuple:
 
 #: m the sole centre keeps from a support surface's edges (sole half-width ~3 cm)
 SOLE_EDGE_MARGIN = 0.06
+#: m a forearm sphere may reach into an object its hand holds (Options.forearm_clear_of_held_object).
+#: The TO's hand point (model.HAND_POINT) is on the wrist-yaw axis, but the rubber hand's inner face is
+#: 4.5 cm from that axis (the sim's hand box: 1.2 cm offset, 3.3 cm half-thickness), so on the real
+#: hand, held flat on a face, the forearm is 4.5 cm further out than the TO's model puts it, 4 cm
+#: with the controller's 5 mm squeeze (lomanip_sim WbcGains.hand_squeeze), so at this depth the real
+#: forearm just reaches the face. With 0 the TO could only satisfy the rows by turning the fingers
+#: into the face (case_lift_box: 20 degrees)
+HELD_OBJECT_FOREARM_DEPTH = 0.04
 #: sine of the largest tilt of a swing sole (3 deg: heel/toe at most ~5 mm lower than the sole centre)
 SWING_TILT = 0.05
 #: least lateral distance (m) of the sole centres in the base's frame (the hips are 0.24 m apart):
@@ -844,7 +852,7 @@ class ProblemData:
                          [INF, INF, INF, CARRY_TILT, CARRY_TILT, INF])
             # a slack whose pair is off at this knot has no row and no cost: left free, the barrier
             # alone pushed it up without end (S1's carry: 4.3 after 700 iterations), so pin it
-            setb("slack", k, 0, np.array([INF if homotopy is True and self._pair_enabled(k, s, oid) else 0.0
+            setb("slack", k, 0, np.array([INF if homotopy is True and self._surrogate_on(k, s, oid) else 0.0
                                           for s, (oid, _) in self.pairs]))
         # start and end at rest: only xd is bounded (bounding the momenta too would leave the CMM
         # rows of these knots with an all-zero Jacobian -> degenerate, slow ipopt convergence)
@@ -942,7 +950,8 @@ class ProblemData:
             for i, (s, (oid, pi)) in enumerate(self.pairs):
                 on = self._pair_enabled(k, s, oid)
                 rows(f"c{i} collision", k, self._clearance(s, k, oid) if (hard and on) else -INF, INF)
-                rows(f"c{i} homotopy surrogate", k, 0 if (homotopy is True and on) else -INF, INF)
+                rows(f"c{i} homotopy surrogate", k, 0 if (homotopy is True and self._surrogate_on(k, s, oid)) else -INF,
+                     INF)
             for (a, b) in win.st.self_pairs:
                 rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
             for i, (oid, _, _) in enumerate(self.env_pairs):  # hard in every stage: no surrogate
@@ -1283,14 +1292,31 @@ class ProblemData:
         """Least distance (m) the hard collision row keeps sphere ``s`` from an object's
         primitives: LEG_OBJECT_CLEARANCE for feet and shins, else 0; while ``oid`` is carried at
         knot ``k``, at least Options.carried_object_clearance for every sphere but the hands' and
-        forearms' (they hold it)."""
+        forearms' (they hold it); with Options.forearm_clear_of_held_object, -HELD_OBJECT_FOREARM_DEPTH
+        for a forearm sphere against the object its hand holds."""
         grp = self.model.spheres[s].group
+        if self.prob.options.forearm_clear_of_held_object and grp.endswith("_forearm") and k is not None \
+                and self._hand_holds(k, grp.split("_")[0], oid):
+            return -HELD_OBJECT_FOREARM_DEPTH
         out = LEG_OBJECT_CLEARANCE if grp.endswith(("_foot", "_shin")) else 0.0
         carried = self.prob.options.carried_object_clearance
         if carried > 0 and k is not None and not grp.endswith(("_hand", "_forearm")) \
                 and self.obj_mode(k, oid) == "free":
             out = max(out, carried)
         return out
+
+    def _surrogate_on(self, k, s, oid) -> bool:
+        """The pair's homotopy surrogate applies: the pair is on, and it is not a forearm against the
+        object its hand holds. The surrogate (an ellipsoid through the box's corners) reaches 8 cm past
+        a 0.4 m box's side face: the guide could then only keep the wrist out of it by turning the
+        hand off the face, and the final stage kept that turn"""
+        return self._pair_enabled(k, s, oid) and self._clearance(s, k, oid) >= 0.0
+
+    def _hand_holds(self, k: int, side: str, oid: str) -> bool:
+        """Whether hand ``side`` touches ``oid`` at knot ``k`` or the knot before (the release knot)."""
+        limb = f"{side}_hand"
+        near = [self.contact(k, limb)] + ([self.contact(k - 1, limb)] if k > 0 else [])
+        return any(c is not None and c.object_id == oid for c in near)
 
     def _pair_enabled(self, k, s, oid) -> bool:
         grp = self.model.spheres[s].group
@@ -1311,7 +1337,9 @@ class ProblemData:
                 if cc is None or cc.object_id != oid:
                     continue
                 side = limb.split("_")[0]
-                if limb in HANDS and grp in (f"{side}_hand", f"{side}_forearm"):
+                held = (f"{side}_hand",) if self.prob.options.forearm_clear_of_held_object else \
+                    (f"{side}_hand", f"{side}_forearm")
+                if limb in HANDS and grp in held:
                     return False
                 if limb in FEET and grp == f"{side}_foot":
                     return False
@@ -1355,4 +1383,4 @@ class ProblemData:
         col[P[f"c{i}_half"]] = half + (0.0 if hard else self._clearance(s, k, oid))
         on = self._pair_enabled(k, s, oid)
         col[P[f"c{i}_w"]] = [self.w["w_pen"] if (penalty and on) else 0.0,
-                             self._homotopy_weight(homotopy) if on else 0.0, expo]
+                             self._homotopy_weight(homotopy) if self._surrogate_on(k, s, oid) else 0.0, expo]

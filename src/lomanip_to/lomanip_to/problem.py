@@ -313,6 +313,12 @@ class Options:
                                "right_thigh", "pelvis", "torso", "head", "left_hand", "right_hand",
                                "left_forearm", "right_forearm", "left_upper_arm", "right_upper_arm")
     self_collision: bool = True
+    #: the forearm spheres (elbow to wrist) stay out of an object while that side's hand touches it
+    #: (False: off with the hand's own spheres, as before). Why: with them off, S1's and S2's plans
+    #: carried the box with the wrist links 3-8 cm inside it on MuJoCo's meshes; executed, the elbows
+    #: and wrists pressed on the box with 20-140 N beside the hands' forces (docs/execution.md,
+    #: session 40)
+    forearm_clear_of_held_object: bool = False
     #: rad: the waist yaw stays within +-this (0 = the G1's +-2.62). A posture choice, not a joint
     #: limit: S1's carry turned the torso -2.2 rad and held the box over the shoulder (docs/to.md,
     #: session 16)
