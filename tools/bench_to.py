@@ -6,7 +6,8 @@ every variant it builds the fixture problem (src/lomanip_to/config/s1_basket.yam
 s2_trolley.yaml), solves it and records: converged ("optimal" when ipopt's test is met, "stalled" when the stall
 acceptance stopped a feasible final stage, see solver.STALLED_STATUS), success (converged AND the physical checks),
 iterations, build / solve wall time, peak resident memory of this process, max constraint
-violation, max penetration.  Variants (``Options`` switches):
+violation, max penetration, and how deep a forearm reaches into the object its hand holds
+("forearm mm": reported, not a check; docs/to.md, session 40).  Variants (``Options`` switches):
 
   all        AllKeyframe: keyframe base cost eq. (1), foot cost eq. (2), keyframe warm start
   none       NoKeyframe: all three keyframe components off
@@ -56,7 +57,7 @@ VARIANTS = {
 }
 SCENARIOS = ("s1_basket", "s2_trolley")
 COLUMNS = ("case", "variant", "converged", "success", "iterations", "build_s", "solve_s", "peak_mb",
-           "max_violation", "penetration_mm")
+           "max_violation", "penetration_mm", "held_forearm_mm")
 
 
 def grid(scenario: str) -> list[dict]:
@@ -129,7 +130,15 @@ def run_case(model, scenario: str, over: dict, variant: str, out: Path, time_lim
             "peak_mb": s.peak_memory_mb, "max_violation": s.max_constraint_violation.value,
             "max_violation_where": s.max_constraint_violation.text(), "penetration_mm": 1e3 * s.max_penetration,
             "status": s.status_message(), "stages": s.stages, "n_knots": s.n_knots,
+            "held_forearm_mm": _held_forearm_mm(s.checks),
             "checks": {k: bool(c["ok"]) for k, c in s.checks.items()}}
+
+
+def _held_forearm_mm(checks: dict) -> float | None:
+    """How deep (mm) a forearm sphere reaches into the object its hand holds (reported, not gated;
+    lomanip_to.checks.held_object_forearm_depth), or None without the checks."""
+    v = (checks or {}).get("penetration", {}).get("held_object_forearm")
+    return None if v is None else 1e3 * float(v)
 
 
 def convergence_kind(converged: bool, status: str) -> str:
@@ -151,7 +160,8 @@ def _load_penetration(path: Path) -> tuple:
 def fmt_row(r: dict) -> str:
     return (f"{r['case']:<24} {r['variant']:<8} {r.get('convergence', str(r['converged'])):<9} {str(r['success']):<7} "
             f"{r['iterations']:>5d} {r['build_s']:>7.1f} {r['solve_s']:>7.1f} {r['peak_mb']:>7.0f} "
-            f"{r['max_violation']:>9.1e} {r['penetration_mm']:>6.1f}")
+            f"{r['max_violation']:>9.1e} {r['penetration_mm']:>6.1f} "
+            f"{'-' if r.get('held_forearm_mm') is None else format(r['held_forearm_mm'], '.1f'):>10}")
 
 
 def main(argv=None) -> int:
@@ -178,7 +188,7 @@ def main(argv=None) -> int:
     model = G1Model()
     rows = []
     header = (f"{'case':<24} {'variant':<8} {'converged':<9} {'success':<7} {'iter':>5} {'build s':>7} "
-              f"{'solve s':>7} {'peak MB':>7} {'max viol':>9} {'pen mm':>6}")
+              f"{'solve s':>7} {'peak MB':>7} {'max viol':>9} {'pen mm':>6} {'forearm mm':>10}")
     print(header, flush=True)
     try:
         wanted = [{k: float(v) for k, _, v in (kv.partition("=") for kv in spec.split(","))} for spec in a.cell]

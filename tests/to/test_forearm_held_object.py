@@ -69,3 +69,13 @@ def test_a_lift_with_the_option_keeps_the_wrists_within_the_allowance(g1):
     assert worst >= -HELD_OBJECT_FOREARM_DEPTH - 2e-3
     _, deepest, _ = checks.penetration_per_knot(g1, data, res)
     assert deepest <= 5e-3
+    assert res.stats.checks["penetration"]["held_object_forearm"] <= HELD_OBJECT_FOREARM_DEPTH + 2e-3
+
+
+def test_without_the_option_the_checks_report_the_wrists_inside_the_held_box(g1):
+    """The default plan of case_lift_box holds the box with the wrist spheres 3 cm inside it; the
+    checks report it (not gated)."""
+    res = solver.solve(load_problem("case_lift_box", model=g1), g1)
+    pen = res.stats.checks["penetration"]
+    assert pen["held_object_forearm"] > 0.01
+    assert "wrist vs box" in pen["held_object_forearm_where"] or "forearm" in pen["held_object_forearm_where"]

@@ -431,6 +431,38 @@ def _rnea_with_moments(model: G1Model, res, k, xdd):
     return np.array(tau[6:]), np.array(tau[:6])
 
 
+def held_object_forearm_depth(model: G1Model, data, res):
+    """(deepest, "sphere vs object t=...") a forearm sphere reaches, at the knots, into an object its own
+    hand touches.  Reported, not gated: those pairs have no rows unless
+    Options.forearm_clear_of_held_object, and every plan before it carried its box with the wrist
+    links 3-8 cm inside it on MuJoCo's meshes (docs/execution.md, session 40)."""
+    from .discretize import obj_prims_world
+
+    objects = {o.id: o for o in data.prob.objects}
+    worst, where = 0.0, ""
+    for k in range(len(res.t_knots)):
+        cs = None
+        for side in ("left", "right"):
+            c = data.contact(k, f"{side}_hand")
+            if c is None or c.object_id not in objects:
+                continue
+            o = objects[c.object_id]
+            if o.id in res.object_pose_knots:
+                pose = res.object_pose_knots[o.id][k]
+                prims = obj_prims_world(o, pose[:3], pose[3:])
+            else:
+                prims = obj_prims_world(o)
+            if cs is None:
+                cs = model.numeric(res.x_knots[k])["spheres"]
+            for i, sph in enumerate(model.spheres):
+                if sph.group != f"{side}_forearm":
+                    continue
+                d = min(sphere_box_distance(cs[i], cc, R, he, sph.radius) for (cc, R, he) in prims)
+                if -d > worst:
+                    worst, where = float(-d), f"{sph.name} vs {o.id} t={float(res.t_knots[k]):.2f}"
+    return worst, where
+
+
 def placement_error(data, res) -> tuple:
     """Worst (position error m, yaw error rad, object id, t) over the placement goals, at each goal's
     time (the end when it has none).
@@ -493,8 +525,10 @@ def run_checks(model: G1Model, data, res) -> dict:
     # reported, not gated: the rows hold at knots only (the demo's pushes that execute pass 1-5 cm
     # between knots; S1's plans up to 15 cm)
     between, tb = penetration_between_knots(model, data, res)
+    held, held_where = held_object_forearm_depth(model, data, res)
     out["penetration"] = {"value": pen, "where": f"t={res.stats.max_penetration_time:.2f}", "ok": pen <= TOL["penetration"],
-                          "between_knots": between, "between_knots_where": f"t={tb:.2f}"}
+                          "between_knots": between, "between_knots_where": f"t={tb:.2f}",
+                          "held_object_forearm": held, "held_object_forearm_where": held_where}
     v, w = hand_grip_rotation(model, res)
     out["hand_grip_rotation"] = {"value": v, "where": f"{w[0]} t={w[1]:.2f}", "ok": v <= TOL["hand_grip_rotation"]}
     v, w = joint_limit_violation(model, res)

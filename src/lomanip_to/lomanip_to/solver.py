@@ -635,7 +635,7 @@ def on_plan_clock(res: TOResult, t0: float) -> None:
     stats.max_penetration_time += t0
     shift = lambda m: f"t={float(m.group(1)) + t0:.2f}"  # noqa: E731
     for check in (stats.checks or {}).values():
-        for key in ("where", "between_knots_where"):
+        for key in ("where", "between_knots_where", "held_object_forearm_where"):
             if isinstance(check.get(key), str):
                 check[key] = re.sub(r"t=(-?\d+(?:\.\d+)?)", shift, check[key])
 
