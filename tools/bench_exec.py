@@ -9,7 +9,8 @@ come from runs/bench_to/summary.json). A plan whose
 fixture names a lomanip_sim scenario runs in that scenario's world (S1/S2 task success); the others
 in a world built from the plan's own scene. Prints per case: TO convergence, task success, fell,
 max/RMS pelvis position and joint tracking error, final object position error, real-time factor
-(unpaced: simulated time / wall time of physics + control), and saves under runs/bench_exec/<case>/
+(unpaced: simulated time / wall time of physics + control), the largest contact force on a robot
+link other than the feet and hands ("unplanned N": the plan has no such contact), and saves under runs/bench_exec/<case>/
 a video (MP4, or GIF without an MP4 encoder), PNG frames, tracking.png, forces.png, metrics.json.
 
     .venv/bin/python tools/bench_exec.py                          # the three TO test cases (~2.5 min)
@@ -186,7 +187,7 @@ def main() -> int:
     rows = []
     width = max([28] + [len(c[0]) + len(world_label(w or {})) + 3 for c, w in runs])
     hdr = (f"{'case':<{width}}{'TO':>5}{'success':>9}{'fell':>6}{'base max/rms cm':>17}{'joint max/rms rad':>19}"
-           f"{'obj cm/tilt rad':>16}{'RTF':>6}{'QPfail':>7}")
+           f"{'obj cm/tilt rad':>16}{'RTF':>6}{'QPfail':>7}{'unplanned N':>12}")
     print(hdr)
     for (label, problem, overrides, saved), world in runs:
         if world is not None:
@@ -200,8 +201,10 @@ def main() -> int:
               f"{100 * row['max_base_position_error']:>9.2f}/{100 * row['rms_base_position_error']:<7.2f}"
               f"{row['max_joint_error']:>10.3f}/{row['rms_joint_error']:<8.3f}"
               f"{100 * row['final_object_position_error']:>10.1f}/{row['final_object_tilt_error']:<5.2f}"
-              f"{row['real_time_factor']:>6.2f}{row['qp_failures']:>7d}")
+              f"{row['real_time_factor']:>6.2f}{row['qp_failures']:>7d}{row['max_unplanned_contact_force']:>12.0f}")
         print(f"    {row['task_success_detail']}")
+        if row["unplanned_contact"]:
+            print(f"    largest unplanned contact: {row['max_unplanned_contact_force']:.0f} N, {row['unplanned_contact']}")
     ok = [r for r in rows if r.get("task_success")]
     print(f"task success {len(ok)}/{len(rows)}; fell {sum(bool(r.get('fell')) for r in rows)}; "
           f"outputs under {out_root}")

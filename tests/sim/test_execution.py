@@ -19,6 +19,7 @@ def test_stand_plan_metrics_and_logs():
     assert m.duration == pytest.approx(tr.duration + ex.opt.settle_time, abs=0.03)
     assert m.max_base_position_error < 0.005 and m.rms_base_position_error <= m.max_base_position_error
     assert m.max_joint_error < 0.03 and m.qp_failures == 0
+    assert m.max_unplanned_contact_force == 0.0 and m.unplanned_contact == ""  # feet only
     assert m.real_time_factor > 0.0  # measured (unpaced); its figure is tools/bench_exec.py's, not asserted here
     assert feedback[-1] == pytest.approx(1.0) and feedback == sorted(feedback)
     lg = ex.log
@@ -128,3 +129,26 @@ def test_fall_thresholds_give_way_to_the_plan():
     assert not ex._fallen(sim.data)  # ...but so is the plan (0.79 m, upright): 0.64 m and 0.4 rad count
     ex._plan_pose[:, 0] += 0.3  # a plan 30 cm higher than the robot
     assert ex._fallen(sim.data)
+
+
+def test_unplanned_contacts_name_the_link_and_what_it_touches():
+    """A robot dropped on its side: its torso lands on the floor, a contact the plan never has (only
+    feet and hands make contacts); the feet's own contacts are not counted."""
+    import mujoco
+
+    sim, tr = simulation("case_stand")
+    ex = Execution(sim, tr)
+    m = sim.model
+    d = mujoco.MjData(m)
+    d.qpos[:] = sim.data.qpos
+    d.qpos[2] = 0.10
+    d.qpos[3:7] = [np.cos(np.pi / 4), 0.0, np.sin(np.pi / 4), 0.0]  # lying: turned 90 degrees about y
+    mujoco.mj_forward(m, d)
+    ex._unplanned_contacts(d)
+    assert ex._max_unplanned == (0.0, "")  # at first only the soles touch the floor
+    for _ in range(100):
+        mujoco.mj_step(m, d)
+    ex._unplanned_contacts(d)
+    force, where = ex._max_unplanned
+    assert force > 10.0 and "on floor" in where
+    assert not any(link in where for link in ("ankle_roll", "wrist_yaw"))

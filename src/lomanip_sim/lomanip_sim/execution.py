@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 
 from . import frames
-from .robot_model import FOOT_SITES, TORSO_BODY
+from .robot_model import FOOT_BODIES, FOOT_SITES, HAND_BODIES, TORSO_BODY
 from .standing import StandingController
 from .task_success import evaluate
 from .trajectory import LIMBS, EXECUTION_FAILED, StartTolerance, Trajectory, TrajectoryError, check_against_scene, check_start
@@ -56,6 +56,12 @@ class ExecutionMetrics:
     final_object_tilt_error: float = 0.0  # rad, angle between actual and planned object z axes (not in the msg)
     qp_failures: int = 0
     cancelled: bool = False
+    #: N, the largest total contact force on one robot link other than the feet and the hands (an elbow
+    #: on the carried box, a knee on the floor), sampled at the log rate, and that link and what it
+    #: touched (not in the msg). The plan has no such contacts: this is physics the plan did not
+    #: expect (docs/execution.md, session 40: S1's elbows and wrists press on the box with up to 140 N)
+    max_unplanned_contact_force: float = 0.0
+    unplanned_contact: str = ""
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -87,6 +93,11 @@ class Execution:
         self._torso = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, TORSO_BODY)
         self._feet = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) for s in FOOT_SITES.values()]
         self._plan_pose = self._planned_fall_measures()
+        root = m.body_rootid[self.wbc.pelvis]
+        planned = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n) for n in (*FOOT_BODIES.values(), *HAND_BODIES.values())}
+        #: robot bodies whose contacts the plan never has (all but the feet and the hands)
+        self._unplanned_bodies = {b for b in range(m.nbody) if m.body_rootid[b] == root and b not in planned}
+        self._max_unplanned = (0.0, "")
         self._log_every = max(1, int(round(1.0 / (self.opt.log_rate * sim.timestep))))
         self._steps = 0
         self._e2_base = self._e2_joint = 0.0
@@ -179,7 +190,8 @@ class Execution:
             max_base_position_error=self._max_base, rms_base_position_error=math.sqrt(self._e2_base / n),
             max_joint_error=self._max_joint, rms_joint_error=math.sqrt(self._e2_joint / n),
             final_object_position_error=e_pos, final_object_yaw_error=e_yaw, final_object_tilt_error=e_tilt,
-            qp_failures=self.wbc.status.qp_failures, cancelled=cancelled)  # fmt: skip
+            qp_failures=self.wbc.status.qp_failures, cancelled=cancelled,
+            max_unplanned_contact_force=self._max_unplanned[0], unplanned_contact=self._max_unplanned[1])  # fmt: skip
         self.finished = True
         return self.metrics
 
@@ -207,6 +219,7 @@ class Execution:
         lg.joint_rms.append(st.joint_error_rms)
         lg.joint_max.append(st.joint_error_max)
         lg.qpos.append(data.qpos.copy())
+        self._unplanned_contacts(data)
         meas = self.wbc.measured_forces  # of the last completed step (read after its mj_step2)
         i, s = tr.index_at(st.t_ref)
         for limb in LIMBS:
@@ -216,6 +229,27 @@ class Execution:
                 lg.planned[limb].append(f[i] + s * (f[i + 1] - f[i]))
             else:
                 lg.planned[limb].append(lg.planned[limb][-1] if lg.planned[limb] else np.zeros(3))
+
+    def _unplanned_contacts(self, data: mujoco.MjData) -> None:
+        """Track the largest total contact force on one robot link the plan has no contact for."""
+        m = self.sim.model
+        totals: dict = {}
+        f6 = np.zeros(6)
+        for ci in range(data.ncon):
+            c = data.contact[ci]
+            b1, b2 = int(m.geom_bodyid[c.geom1]), int(m.geom_bodyid[c.geom2])
+            for mine, other in ((b1, b2), (b2, b1)):
+                if mine in self._unplanned_bodies and other not in self._unplanned_bodies \
+                        and m.body_rootid[other] != m.body_rootid[mine]:
+                    mujoco.mj_contactForce(m, data, ci, f6)
+                    f = c.frame.reshape(3, 3).T @ f6[:3]
+                    key = (mine, m.body_rootid[other])
+                    totals[key] = totals.get(key, np.zeros(3)) + f
+        for (mine, other), f in totals.items():
+            n = float(np.linalg.norm(f))
+            if n > self._max_unplanned[0]:
+                what = "floor" if other == 0 else m.body(int(other)).name
+                self._max_unplanned = (n, f"{m.body(mine).name} on {what} at t={float(data.time) - self.wbc.t0:.2f} s")
 
     def _measures(self, data: mujoco.MjData) -> tuple[float, float, float]:
         """Pelvis height, pelvis height above the lowest foot site, max pelvis/torso tilt."""

@@ -429,6 +429,9 @@ class SimNode(Node):
                 goal_handle.succeed()
             log.info(f"execution finished: task success {metrics.task_success}, fell {metrics.fell}, "
                      f"RTF {metrics.real_time_factor:.2f}; {metrics.task_success_detail}")
+            if metrics.unplanned_contact:
+                log.info(f"largest contact the plan did not have: {metrics.max_unplanned_contact_force:.0f} N, "
+                         f"{metrics.unplanned_contact}")
             return result
         finally:
             with self._world():
