@@ -194,8 +194,12 @@ def penetration_between_knots(model: G1Model, data, res, rate: float = 50.0):
             enabled[k, oid] = np.array([data._pair_enabled(k, i, oid) for i in range(len(radii))])
         return enabled[k, oid]
 
+    allowance = {}
+
     def allowed(k, oid):  # a held object's forearm allowance (Options.forearm_clear_of_held_object)
-        return np.array([max(-data._clearance(i, k, oid), 0.0) for i in range(len(radii))])
+        if (k, oid) not in allowance:
+            allowance[k, oid] = np.array([max(-data._clearance(i, k, oid), 0.0) for i in range(len(radii))])
+        return allowance[k, oid]
 
     worst, where = 0.0, 0.0
     for i, t in enumerate(dense.t):
