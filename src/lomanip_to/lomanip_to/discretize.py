@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .model import FEET, HANDS, LIMBS, SOLE_CENTER, G1Model, rot_to_rpy, rpy_to_rot, sole_force_points
+from .model import FEET, HANDS, SOLE_CENTER, G1Model, rot_to_rpy, rpy_to_rot, sole_force_points
 from .problem import FLOOR, INVALID_REQUEST, STANCE, WALKING, Problem, ProblemError, SceneObject
 from .route import footprint_of, point_along, shortest_route, smoothstep, walking_heading
 from .transcription import UPPER_BODY_XD, G, Structure, Window, grip_axes
@@ -1319,30 +1319,22 @@ class ProblemData:
         return any(c is not None and c.object_id == oid for c in near)
 
     def _pair_enabled(self, k, s, oid) -> bool:
-        grp = self.model.spheres[s].group
-        for limb in LIMBS:
-            c = self.contact(k, limb)
-            # off while the limb touches the object and at the knot it lets go (the release row keeps
-            # it at the contact there); on at the knot before a touch, so the hand comes from outside:
-            # with it off there, S1's left hand came over the box's top edge (123 mm into it on the
-            # sim's meshes, the executed robot fell) and S2's wrist was 118 mm inside the box
-            near = [c]
-            if k > 0:
-                near.append(self.contact(k - 1, limb))
-            # feet keep the older rule (off the knot before touchdown too): with the hands' rule for
-            # the feet as well, S1's subtask 2 (step onto the box) stopped at its iteration cap
-            if limb in FEET and k + 1 < self.grid.K:
-                near.append(self.contact(k + 1, limb))
-            for cc in near:
-                if cc is None or cc.object_id != oid:
-                    continue
-                side = limb.split("_")[0]
-                held = (f"{side}_hand",) if self.prob.options.forearm_clear_of_held_object else \
-                    (f"{side}_hand", f"{side}_forearm")
-                if limb in HANDS and grp in held:
-                    return False
-                if limb in FEET and grp == f"{side}_foot":
-                    return False
+        side, _, part = self.model.spheres[s].group.partition("_")
+        # hands: off while the hand touches the object and at the knot it lets go (the release row
+        # keeps it at the contact there); on at the knot before a touch, so the hand comes from
+        # outside: with it off there, S1's left hand came over the box's top edge (123 mm into it on
+        # the sim's meshes, the executed robot fell) and S2's wrist was 118 mm inside the box. The
+        # forearm goes with the hand unless Options.forearm_clear_of_held_object
+        held = ("hand",) if self.prob.options.forearm_clear_of_held_object else ("hand", "forearm")
+        if part in held:
+            return not self._hand_holds(k, side, oid)
+        # feet keep the older rule (off the knot before touchdown too): with the hands' rule for
+        # the feet as well, S1's subtask 2 (step onto the box) stopped at its iteration cap
+        if part == "foot":
+            limb = f"{side}_foot"
+            near = [k - 1, k, k + 1] if k > 0 else [k, k + 1]
+            return not any((c := self.contact(j, limb)) is not None and c.object_id == oid
+                           for j in near if j < self.grid.K)
         return True
 
     def _homotopy_weight(self, homotopy) -> float:

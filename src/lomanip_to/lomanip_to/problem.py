@@ -550,7 +550,8 @@ def validate_problem(prob: Problem, model=None) -> None:
                            ("final_warm_start_max_violation", np.inf, ">= 0"),
                            ("torque_margin", 1.0, "in (0, 1]")):
         val = getattr(prob.options, name)
-        if not (np.isfinite(val) and 0 <= val <= hi) or (name == "torque_margin" and val == 0):
+        low_ok = val > 0 if rule.startswith("in (") else val >= 0  # "(": the interval is open at 0
+        if not (np.isfinite(val) and low_ok and val <= hi):
             raise ProblemError(INVALID_REQUEST, f"options.{name} must be {rule}, not {val}", "options")
     ids = set()
     for i, o in enumerate(prob.objects):
