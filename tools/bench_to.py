@@ -144,11 +144,14 @@ def _held_forearm_mm(checks: dict) -> float | None:
 def convergence_kind(converged: bool, status: str) -> str:
     """'optimal' (ipopt's tolerance or acceptable test), 'stalled' (the stall acceptance:
     feasible, objective flat; solver.STALLED_STATUS), 'capped' (a feasible iterate at the
-    iteration cap; solver.CAPPED_FEASIBLE_STATUS) or 'no'."""
+    iteration cap; solver.CAPPED_FEASIBLE_STATUS), 'early-stop' (a feasible iterate before ipopt
+    stopped by itself; solver.FEASIBLE_BEFORE_STOP_STATUS) or 'no'."""
     if not converged:
         return "no"
     if solver.CAPPED_FEASIBLE_STATUS in status:
         return "capped"
+    if solver.FEASIBLE_BEFORE_STOP_STATUS in status:
+        return "early-stop"
     return "stalled" if solver.STALLED_STATUS in status else "optimal"
 
 

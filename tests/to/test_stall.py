@@ -111,3 +111,40 @@ def test_an_infeasible_iterate_at_the_iteration_cap_still_fails(g1):
     res = _capped("case_one_step", g1)   # a step is not feasible after 3 iterations
     assert not res.stats.converged and not res.success
     assert res.stats.status == "Maximum_Iterations_Exceeded"
+
+
+def _status(ipopt_status, last_stage=True, stalled=False, feasible_best=True, timed_out=False, **options):
+    return solver.stage_status(ipopt_status, Options(**options), last_stage=last_stage, stalled=stalled,
+                               feasible_best=feasible_best, timed_out=timed_out)
+
+
+def test_an_early_ipopt_stop_after_a_feasible_iterate_keeps_that_iterate():
+    """S2 5.0 kg at yaw 0.6: ipopt ended the pick 'Infeasible_Problem_Detected' on a point within 5e-6
+    of every row; with a feasible iterate behind it the final stage counts as converged on it."""
+    for st in solver.STOPPED_EARLY_STATUSES:
+        out = _status(st)
+        assert out == solver.FEASIBLE_BEFORE_STOP_STATUS and solver._converged(out)
+        assert _status(st, accept_feasible_at_solver_stop=False) == st
+        assert not solver._converged(st)
+
+
+def test_early_stops_fail_without_a_feasible_iterate_in_a_guide_or_past_the_time_limit():
+    st = "Infeasible_Problem_Detected"
+    assert _status(st, feasible_best=False) == st
+    assert _status(st, last_stage=False) == st   # a guide stage never returns a best iterate
+    assert _status(st, timed_out=True) == st
+    assert _status("Invalid_Number_Detected") == "Invalid_Number_Detected"  # not an early stop we trust
+    assert _status("Solve_Succeeded") == "Solve_Succeeded"
+
+
+def test_stall_and_cap_statuses_are_unchanged():
+    assert _status("User_Requested_Stop", stalled=True) == solver.STALLED_STATUS
+    assert _status("Maximum_Iterations_Exceeded") == solver.CAPPED_FEASIBLE_STATUS
+    assert _status("Maximum_Iterations_Exceeded", accept_feasible_at_cap=False) == "Maximum_Iterations_Exceeded"
+
+
+def test_the_message_names_an_early_stop():
+    from lomanip_to.result import SolverStats
+
+    msg = SolverStats(converged=True, status=solver.FEASIBLE_BEFORE_STOP_STATUS).status_message()
+    assert "before ipopt stopped early" in msg

@@ -258,6 +258,13 @@ class Options:
     #: whole plan failed there (session 34).  Not a KKT certificate, like the stall; the physical
     #: checks still decide success.  False: the cap fails the stage, as before session 35
     accept_feasible_at_cap: bool = True
+    #: a final stage that ipopt ends by itself without optimality (restoration failed, problem
+    #: declared locally infeasible, step too small: result.STOPPED_EARLY_STATUSES) after a feasible
+    #: iterate (violation within constr_tol; tracked only while stall_iterations > 0) returns its
+    #: best feasible iterate ("Feasible_Before_Solver_Stop"). Why: S2 5.0 kg at yaw +-0.6 ended the
+    #: pick "Infeasible_Problem_Detected" on points within 7e-6 of every row (session 40). Not a KKT
+    #: certificate; the physical checks still decide success. False: such a stop fails the stage
+    accept_feasible_at_solver_stop: bool = True
     #: m/s: over the LIFT_OFF_KNOTS knots after an object leaves its support it rises at least this
     #: fast and moves sideways at most this fast (0 = off: only the gentle start's speed bounds).
     #: Why: S2's generated lift raised the box 6 mm in 0.8 s while moving it 4-8 cm sideways;

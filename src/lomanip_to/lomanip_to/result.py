@@ -28,6 +28,15 @@ STALLED_STATUS = "Feasible_Objective_Stalled"
 #: status of a final stage that reached its iteration cap on a feasible iterate and returned the best
 #: one (Options.accept_feasible_at_cap)
 CAPPED_FEASIBLE_STATUS = "Feasible_At_Iteration_Cap"
+#: status of a final stage that ipopt itself stopped without optimality (STOPPED_EARLY_STATUSES) after
+#: it had passed through a feasible iterate; the stage returns the best one
+#: (Options.accept_feasible_at_solver_stop)
+FEASIBLE_BEFORE_STOP_STATUS = "Feasible_Before_Solver_Stop"
+#: ipopt's return statuses for a run it ended by itself before its optimality test was met. Why:
+#: S2 5.0 kg at yaw +-0.6 (session 40): the pick's final stage ended "Infeasible_Problem_Detected" (its
+#: restoration phase gave up) on a point within 5e-6 / 7e-6 of every row, and the whole plan failed there
+STOPPED_EARLY_STATUSES = ("Infeasible_Problem_Detected", "Restoration_Failed",
+                          "Search_Direction_Becomes_Too_Small", "Error_In_Step_Computation")
 
 
 @dataclass
@@ -86,6 +95,9 @@ class SolverStats:
                 how = "converged to a feasible point whose objective stalled (ipopt's optimality test not met)"
             if CAPPED_FEASIBLE_STATUS in self.status:
                 how = "stopped at the iteration cap on a feasible point (ipopt's optimality test not met)"
+            if FEASIBLE_BEFORE_STOP_STATUS in self.status:
+                how = ("kept the best feasible point from before ipopt stopped early (ipopt's optimality "
+                       "test not met)")
             return f"{how} in {self.iterations} iterations; max constraint violation " \
                    f"{self.max_constraint_violation.text()}; {pen}"
         return (f"did not converge in {self.iterations} iterations ({self.status}); max constraint violation "

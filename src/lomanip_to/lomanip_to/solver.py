@@ -25,7 +25,8 @@ from .checks import penetration_per_knot, run_checks
 from .discretize import ProblemData, _lifts
 from .model import FEET, HANDS, LIMBS, G1Model, rpy_to_rot
 from .problem import TO_NOT_CONVERGED, WALKING, Problem, validate_problem
-from .result import CAPPED_FEASIBLE_STATUS, STALLED_STATUS, Progress, SolverStats, TOResult, Violation
+from .result import (CAPPED_FEASIBLE_STATUS, FEASIBLE_BEFORE_STOP_STATUS, STALLED_STATUS, STOPPED_EARLY_STATUSES,
+                     Progress, SolverStats, TOResult, Violation)
 from .transcription import Window
 
 _WINDOWS: dict = {}
@@ -291,30 +292,48 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
             cb.sink = None
         dt = time.perf_counter() - t0
         st = s.stats()
-        status = st.get("return_status", "")
+        ipopt_status = st.get("return_status", "")
         feasible_best = run.best is not None and run.best[1] is not None
-        if run.stalled:
-            status = STALLED_STATUS
-        elif last_stage and status == "Maximum_Iterations_Exceeded" and feasible_best \
-                and opt.accept_feasible_at_cap and not run.timed_out:
-            status = CAPPED_FEASIBLE_STATUS
+        status = stage_status(ipopt_status, opt, last_stage=last_stage, stalled=run.stalled,
+                              feasible_best=feasible_best, timed_out=run.timed_out)
         warm_ok = _converged(status)
         reg = np.asarray(st.get("iterations", {}).get("regularization_size", []), float)
         start = "warm" if tag == "warm" else ("cold" if z0 is not None else "keyframes")
-        run.stages.append({"stage": stage_name, "exponent": expo, "hard": hard, "status": status, "start": start,
+        run.stages.append({"stage": stage_name, "exponent": expo, "hard": hard, "status": status,
+                           "ipopt_status": ipopt_status, "start": start,
                            "iterations": int(st.get("iter_count", 0)), "time": dt, "timing": _timing_split(st, dt),
                            "regularised_iterations": int(np.count_nonzero(reg > 0))})
         z0 = np.array(sol["x"]).ravel()
         lam_x = np.array(sol["lam_x"]).ravel()
         lam_g = np.array(sol["lam_g"]).ravel()
         f_sol = float(sol["f"])
-        if status in (STALLED_STATUS, CAPPED_FEASIBLE_STATUS) and feasible_best:
+        if status in _BEST_ITERATE_STATUSES and feasible_best:
             f_sol, z0, lam_x, lam_g = run.best  # the best feasible iterate, not ipopt's last one
         lam_g = _scatter(lam_g, rows, nlp.ngg)  # multipliers of the switched-off rows are 0
         if run.timed_out:
             status = f"time limit {opt.time_limit:.0f} s reached"
             break
     return z0, lam_x, lam_g, status, nlp, args, Pm, lbg, ubg, f_sol
+
+
+#: stage statuses under which the stage returns its best feasible iterate, not ipopt's last one
+_BEST_ITERATE_STATUSES = (STALLED_STATUS, CAPPED_FEASIBLE_STATUS, FEASIBLE_BEFORE_STOP_STATUS)
+
+
+def stage_status(ipopt_status: str, opt, last_stage: bool, stalled: bool, feasible_best: bool,
+                 timed_out: bool) -> str:
+    """A stage's status from ipopt's: the stall stop, or a final stage that ipopt ended at its cap
+    or early (STOPPED_EARLY_STATUSES) after a feasible iterate, is renamed so that the stage counts as
+    converged on that iterate (Options.accept_feasible_at_cap / accept_feasible_at_solver_stop)."""
+    if stalled:
+        return STALLED_STATUS
+    if not last_stage or not feasible_best or timed_out:
+        return ipopt_status
+    if ipopt_status == "Maximum_Iterations_Exceeded" and opt.accept_feasible_at_cap:
+        return CAPPED_FEASIBLE_STATUS
+    if ipopt_status in STOPPED_EARLY_STATUSES and opt.accept_feasible_at_solver_stop:
+        return FEASIBLE_BEFORE_STOP_STATUS
+    return ipopt_status
 
 
 def _start_violation(wd, data: ProblemData, K: int, threads: int, win, z0, args: dict, hom: bool) -> float:
@@ -370,8 +389,7 @@ def _timing_split(st: dict, wall: float) -> dict:
 
 
 def _converged(status: str) -> bool:
-    return status in ("Solve_Succeeded", "Solved_To_Acceptable_Level") or \
-        status.startswith((STALLED_STATUS, CAPPED_FEASIBLE_STATUS))
+    return status in ("Solve_Succeeded", "Solved_To_Acceptable_Level") or status.startswith(_BEST_ITERATE_STATUSES)
 
 
 def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progress=None) -> TOResult:
@@ -419,7 +437,7 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
             poses = _poses_at_end(win, sd, Wm, poses)
             grips = _grips_at_end(win, sd, res[6])
         if converged:
-            status = "; ".join(f"{kind} ({', '.join(names)})" for kind in (STALLED_STATUS, CAPPED_FEASIBLE_STATUS)
+            status = "; ".join(f"{kind} ({', '.join(names)})" for kind in _BEST_ITERATE_STATUSES
                                if (names := [st["stage"].strip() for st in run.stages if st["status"] == kind])) \
                 or "Solve_Succeeded"
             z_st, lam_st = _stitch(win, data, parts)
