@@ -239,6 +239,36 @@ def test_grasp_normal_turns_with_the_object():
     assert np.allclose(fixed._contact_normals(contact), n0)
 
 
+@pytest.mark.parametrize("gap", [-0.012, 0.0, 0.04])
+def test_hand_offset_subtracts_the_plans_own_distance_from_the_surface(gap):
+    """The hand target moves out along the normal by the hand box's support distance plus the
+    squeeze, less the plan's site height above its contact point (a TO hand standoff of 4 cm: the
+    plan's hand is already out; the wrist-axis hand point: its site 1.2 cm inside); with
+    hand_offset_plan_gap off, by the support distance alone, as before."""
+    from lomanip_sim.robot_model import HAND_COLLISION_HALF_SIZE
+
+    import dataclasses
+
+    sim, tr = simulation("case_lift_box")
+    limb = "left_hand"
+    ph = next(ph for ph in tr.phases if limb in ph.contacts)
+    tr = dataclasses.replace(tr, phases=[ph])  # this contact alone (no neighbour's ramp)
+    i = int(np.searchsorted(tr.t, 0.5 * (ph.start + ph.end)))
+    assert np.all(np.isfinite(tr.points[limb][i]))
+    R = np.repeat(np.eye(3)[None], tr.n, 0)
+    on = WholeBodyController(sim.world, tr)
+    n = on._contact_normals(ph.contacts[limb])
+    site = np.where(np.isfinite(tr.points[limb]), tr.points[limb], 0.0)
+    for j, t in enumerate(tr.t):  # each point's site this far out along its phase's normal
+        here = tr.phase_at(t)
+        if here is not None and limb in here.contacts:
+            site[j] += gap * on._contact_normals(here.contacts[limb])[j]
+    base = float(np.abs(n[i]) @ HAND_COLLISION_HALF_SIZE) + on.g.hand_squeeze
+    np.testing.assert_allclose(on._hand_offsets(limb, R, site)[i], (base - gap) * n[i], atol=1e-9)
+    off = WholeBodyController(sim.world, tr, WbcGains(hand_offset_plan_gap=False))
+    np.testing.assert_allclose(off._hand_offsets(limb, R, site)[i], base * n[i], atol=1e-9)
+
+
 def test_lifted_object_gets_the_force_its_planned_motion_needs():
     """On a lifted object the hands' fed-forward net force is m (a + g) of its planned motion, split
     between the hands, with the plan's squeeze kept (times grasp_squeeze_scale): S1's plan lifts its

@@ -186,7 +186,7 @@ def trajectory_from_msg(msg):
         free = frozenset(mo.object_id for mo in ph.object_motions if mo.mode == "free") if says_motions else None
         phases.append(Phase(_duration_s(ph.start), _duration_s(ph.end), contacts, walking=ph.phase_type == 1,
                             free_objects=free))
-    forces, torques = {}, {}
+    forces, torques, points = {}, {}, {}
     if msg.contact_wrenches:
         if len(msg.contact_wrenches) != n:
             raise bad(f"contact_wrenches has {len(msg.contact_wrenches)} entries for {n} points")
@@ -194,6 +194,7 @@ def trajectory_from_msg(msg):
             for w in knot.wrenches:
                 forces.setdefault(w.limb, np.zeros((n, 3)))[i] = [w.wrench.force.x, w.wrench.force.y, w.wrench.force.z]
                 torques.setdefault(w.limb, np.zeros((n, 3)))[i] = [w.wrench.torque.x, w.wrench.torque.y, w.wrench.torque.z]
+                points.setdefault(w.limb, np.full((n, 3), np.nan))[i] = [w.point.x, w.point.y, w.point.z]
     objects = {}
     for ot in msg.object_trajectories:
         if len(ot.poses) != n:
@@ -209,7 +210,7 @@ def trajectory_from_msg(msg):
             raise bad(f"angular_momentum has {len(msg.angular_momentum)} entries for {n} points")
         angmom = np.array([[v.x, v.y, v.z] for v in msg.angular_momentum])
     return make_trajectory(t, names, q, qd, base, quat, lin, ang, phases=phases, forces=forces, torques=torques,
-                           objects=objects, scenario=msg.scenario, robot_name=msg.robot_name,
+                           points=points, objects=objects, scenario=msg.scenario, robot_name=msg.robot_name,
                            angular_momentum=angmom)  # fmt: skip
 
 

@@ -86,6 +86,9 @@ class Trajectory:
     robot_name: str = ROBOT_NAME
     #: planned centroidal angular momentum about the CoM (N, 3), kg m^2/s, or None (not given)
     angular_momentum: np.ndarray | None = None
+    #: planned contact point per limb (N, 3), world, where its wrench acts; NaN rows = not touching
+    #: (the controller reads the hands' planned distance from the surface off it)
+    points: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def duration(self) -> float:
@@ -178,7 +181,7 @@ def check_time_grid(t) -> np.ndarray:
 
 def make_trajectory(t, joint_names, q, qd, base_pos, base_quat_wxyz, base_linvel=None, base_angvel=None, *,
                     phases=(), forces=None, torques=None, objects=None, scenario: str = "",
-                    robot_name: str = ROBOT_NAME, angular_momentum=None) -> Trajectory:  # fmt: skip
+                    robot_name: str = ROBOT_NAME, angular_momentum=None, points=None) -> Trajectory:  # fmt: skip
     """Check and build a Trajectory (joint columns reordered into G1 order). Raises TrajectoryError."""
     if robot_name and robot_name != ROBOT_NAME:
         raise TrajectoryError(INVALID_TRAJECTORY, f"trajectory is for robot {robot_name!r}, this sim runs {ROBOT_NAME!r}")
@@ -197,7 +200,13 @@ def make_trajectory(t, joint_names, q, qd, base_pos, base_quat_wxyz, base_linvel
     ang = _arr(base_angvel, (3,), n, "base angular velocities") if base_angvel is not None else np.zeros((n, 3))
     fz = {l: _arr(v, (3,), n, f"{l} forces") for l, v in (forces or {}).items()}
     tz = {l: _arr(v, (3,), n, f"{l} torques") for l, v in (torques or {}).items()}
-    for limb in list(fz) + list(tz):
+    pz = {}
+    for l, v in (points or {}).items():
+        v = np.asarray(v, float)
+        if v.shape != (n, 3):
+            raise TrajectoryError(INVALID_TRAJECTORY, f"{l} contact points: expected shape ({n}, 3), got {v.shape}")
+        pz[l] = v
+    for limb in list(fz) + list(tz) + list(pz):
         if limb not in LIMBS:
             raise TrajectoryError(INVALID_TRAJECTORY, f"unknown limb {limb!r} in contact wrenches (valid: {LIMBS})")
     objs = {}
@@ -217,7 +226,7 @@ def make_trajectory(t, joint_names, q, qd, base_pos, base_quat_wxyz, base_linvel
                 raise TrajectoryError(INVALID_TRAJECTORY, f"unknown limb {limb!r} in contact phase {k}")
     return Trajectory(t=t, q=q, qd=qd, base_pos=base_pos, base_quat=quat, base_linvel=lin, base_angvel=ang,
                       phases=phases, forces=fz, torques=tz, objects=objs, scenario=scenario, robot_name=robot_name,
-                      angular_momentum=angmom)
+                      angular_momentum=angmom, points=pz)
 
 
 def check_against_scene(traj: Trajectory, object_ids) -> None:
@@ -277,15 +286,17 @@ def from_to_result(res, phases, scenario: str = "") -> Trajectory:
     if getattr(res, "t", None) is None:
         res.densify()
     quat = np.array([frames.xyzw_to_wxyz(q) for q in res.base_quat_xyzw])
-    forces, torques = {}, {}
+    forces, torques, points = {}, {}, {}
     for limb, f in (res.forces or {}).items():
         active = np.array([bool(o) for o in res.contact_objects[limb]])
         forces[limb] = np.where(active[:, None], f, 0.0)
         torques[limb] = np.where(active[:, None], res.torques[limb], 0.0)
+        if limb in (getattr(res, "points", None) or {}):
+            points[limb] = np.where(active[:, None], res.points[limb], np.nan)
     objects = {oid: (res.object_positions[oid], np.array([frames.xyzw_to_wxyz(q) for q in res.object_quat_xyzw[oid]]))
                for oid in (res.object_positions or {})}
     t = np.asarray(res.t, float) - float(res.t[0])
     return make_trajectory(t, res.joint_names, res.joint_positions, res.joint_velocities, res.base_position, quat,
                            res.base_linear_velocity, res.base_angular_velocity, phases=phases_from_to(phases),
                            forces=forces, torques=torques, objects=objects, scenario=scenario,
-                           angular_momentum=res.angular_momentum)  # fmt: skip
+                           angular_momentum=res.angular_momentum, points=points)  # fmt: skip

@@ -207,6 +207,12 @@ class WbcGains:
     # m/s^2 for 30 ms, 3.3 cm in front of the heels: the robot fell backwards at 2.5 s
     hand_offset_smooth: bool = True
     hand_squeeze: float = -0.005  # m: hand target this far inside the surface (negative = into the object)
+    # the hand offset subtracts the plan's own distance of the hand site from the surface, read off
+    # the plan's contact points where it gives them (Trajectory.points), so a plan whose hand already
+    # stands off the surface (lomanip_to Options.hand_standoff) is not pushed out twice, and one whose
+    # site lies inside it (the TO's hand point is on the wrist axis, the site 1.2 cm towards the palm)
+    # is pushed out by that much more. False: the offset is the hand box's support distance alone
+    hand_offset_plan_gap: bool = True
     hand_clearance: float = 0.02  # m, extra distance from the surface while approaching a contact
     hand_engage_error: float = 0.06  # m: planned hand force is applied once the hand got this close
     # s: the planned hand force is fed forward only while the hand box has touched its object within
@@ -576,7 +582,7 @@ class WholeBodyController:
         mov_bodies = movable_bodies(m, root)
         movable = self._movable_poses(mov_bodies) if obstacles or (self.g.hand_approach and mov_bodies) else {}
         for limb in HANDS:  # the plan's hand is a point on the surface; the sim's hand is a box
-            off = self._hand_offsets(limb, sR[limb])
+            off = self._hand_offsets(limb, sR[limb], sp[limb])
             sp[limb] = sp[limb] + off
             if self.g.hand_approach and movable and self.hand_geom[limb] >= 0:
                 probe = HandBoxProbe(m, self.hand_geom[limb], self.site_id[limb], static_geoms, movable)
@@ -885,22 +891,29 @@ class WholeBodyController:
         up = np.where(normals[:, 2:3] > 0.3, self.g.hand_approach_up * np.array([0.0, 0.0, 1.0]), 0.0)
         return (normals + up) / np.linalg.norm(normals + up, axis=1, keepdims=True)
 
-    def _hand_offsets(self, limb: str, R_hand: np.ndarray) -> np.ndarray:
-        """(N,3) shift of the hand target along the contact normal by the hand box's support distance.
+    def _hand_offsets(self, limb: str, R_hand: np.ndarray, p_site: np.ndarray | None = None) -> np.ndarray:
+        """(N,3) shift of the hand target along the contact normal by the hand box's support distance,
+        less the plan's own distance of the site from the surface (``hand_offset_plan_gap``).
 
-        Why: the TO models a hand as a point on the object's surface, the sim's hand is a collision
-        box around that point, so tracking the point would push the box 3-5 cm into the object.
-        The shift is ramped in over ``hand_offset_ramp`` s before each contact (so the approaching
-        hand box stays outside the object's face) and out over ``hand_release_ramp`` s after it.
+        Why: the TO models a hand as a point on (or a ball touching) the object's surface, the sim's
+        hand is a collision box around the site, so tracking the plan's site would push the box 3-5 cm
+        into the object. The shift is ramped in over ``hand_offset_ramp`` s before each contact (so the
+        approaching hand box stays outside the object's face) and out over ``hand_release_ramp`` s after it.
         """
         tr, g = self.traj, self.g
         half = np.asarray(HAND_COLLISION_HALF_SIZE, float)
         off = np.zeros((tr.n, 3))
+        pts = tr.points.get(limb) if g.hand_offset_plan_gap and p_site is not None else None
         for ph in tr.phases:
             c = ph.contacts.get(limb)
             if c is None:
                 continue
             normals = self._contact_normals(c)
+            gap = 0.0  # the plan's site above the surface over the phase (median: a boundary point
+            if pts is not None:  # may carry the neighbouring phase's contact point)
+                inside = np.nonzero((tr.t >= ph.start - 1e-9) & (tr.t <= ph.end + 1e-9) & np.isfinite(pts[:, 0]))[0]
+                if len(inside):
+                    gap = float(np.median(np.einsum("ij,ij->i", normals[inside], p_site[inside] - pts[inside])))
             w = np.clip(np.minimum(1.0 - (ph.start - tr.t) / g.hand_offset_ramp, 1.0 - (tr.t - ph.end) / g.hand_release_ramp),
                         0.0, 1.0)  # fmt: skip
             # approach from outside: extra clearance until shortly before contact, gone just after it
@@ -910,7 +923,7 @@ class WholeBodyController:
             clear = g.hand_clearance * u
             for i in np.nonzero(w > 0)[0]:
                 n = normals[i]
-                d = float(np.abs(R_hand[i].T @ n) @ half) + g.hand_squeeze + clear[i]
+                d = float(np.abs(R_hand[i].T @ n) @ half) + g.hand_squeeze + clear[i] - gap
                 cand = w[i] * d * n
                 if np.linalg.norm(cand) > np.linalg.norm(off[i]):
                     off[i] = cand

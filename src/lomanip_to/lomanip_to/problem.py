@@ -326,6 +326,14 @@ class Options:
     #: and wrists pressed on the box with 20-140 N beside the hands' forces (docs/execution.md,
     #: session 40)
     forearm_clear_of_held_object: bool = False
+    #: m: a hand in contact holds its hand point (model.HAND_POINT, on the wrist-yaw axis) this far
+    #: outside the touched surface along its normal, and its force acts at the surface point below
+    #: it (0: the hand point on the surface, as before). Named simplification: the hand as a ball of
+    #: this radius about its hand point. Why: the rubber hand's inner face is 4.5 cm from the wrist
+    #: axis (lomanip_sim robot_model: hand box centre 1.2 cm towards the palm, half thickness 3.3 cm),
+    #: so with the point on the surface the plans hold their wrists and forearms 3-8 cm inside the
+    #: box they carry (docs/execution.md, session 40). Offline option
+    hand_standoff: float = 0.0
     #: rad: the waist yaw stays within +-this (0 = the G1's +-2.62). A posture choice, not a joint
     #: limit: S1's carry turned the torso -2.2 rad and held the box over the shoulder (docs/to.md,
     #: session 16)
@@ -554,6 +562,7 @@ def validate_problem(prob: Problem, model=None) -> None:
                            ("placement_tolerance", 1.0, "in [0, 1] m (0 = off)"),
                            ("carried_object_clearance", 0.2, "in [0, 0.2] m (0 = off)"),
                            ("dt_lift", 1.0, "in [0, 1] s (0 = off)"), ("cop_margin_front", 0.12, "in [0, 0.12] m"),
+                           ("hand_standoff", 0.1, "in [0, 0.1] m"),
                            ("final_warm_start_max_violation", np.inf, ">= 0"),
                            ("torque_margin", 1.0, "in (0, 1]")):
         val = getattr(prob.options, name)

@@ -801,6 +801,7 @@ def extract(model: G1Model, data: ProblemData, win: Window, nlp: AssembledNLP, z
                     for j in range(len(data.moving)):
                         Rs = Rs + sel[j + 1] * rpy_to_rot(Wm[W[f"o{j}_pose"], k][3:])
                     Nn[k] = Rs @ n
+                    Pp[k] = pt - data.prob.options.hand_standoff * Nn[k]  # the force's point, on the surface
         forces[limb], torques[limb], points[limb], corners[limb], objs[limb], normals[limb] = F, T, Pp, C, ob, Nn
     h = np.stack([np.concatenate([Wm[W["comd"], k], Wm[W["kk"], k]]) * model.mass for k in range(K)])
     obj_pose = {oid: Wm[W[f"o{j}_pose"]].T.copy() for oid, j in data.midx.items()}

@@ -106,6 +106,8 @@ class Structure:
     load_in_support: bool = False
     #: m the soles' toe-side force points lie inside the toe edge (Options.cop_margin_front)
     cop_margin_front: float = float(COP_MARGIN[0])
+    #: m a touching hand's point stays outside the surface, its force at the surface (Options.hand_standoff)
+    hand_standoff: float = 0.0
 
     def key(self) -> str:
         return hashlib.sha1(repr(self).encode()).hexdigest()[:12]
@@ -284,6 +286,18 @@ class Window:
         objs_a = [obj_state(wa, j) for j in range(M)]
         objs_b = [obj_state(wb, j) for j in range(M)]
 
+        # ---- hands' contact frames: surface rotation (world, or the selected object's), normal, and
+        # the point the force acts at (Options.hand_standoff below the hand point along the normal)
+        hand_R, hand_n, hand_cp = {}, {}, {}
+        for h in HANDS:
+            sel = pp[f"{h}_sel"]
+            Rsel = sel[0] * ca.SX.eye(3)
+            for j in range(M):
+                Rsel = Rsel + sel[j + 1] * objs_a[j][2]
+            hand_R[h] = Rsel
+            hand_n[h] = Rsel @ pp[f"{h}_n"]
+            hand_cp[h] = limbs[h][0] - st.hand_standoff * hand_n[h] if st.hand_standoff > 0 else limbs[h][0]
+
         # ---- forces (robot scaled by m g)
         sole_pts = sole_force_points(st.cop_margin_front)
         feet_pts = {}
@@ -296,14 +310,14 @@ class Window:
             for i in range(4):
                 forces.append((pts[i], u[:, i]))
         for h in HANDS:
-            forces.append((limbs[h][0], wa[f"u_{h}"]))
+            forces.append((hand_cp[h], wa[f"u_{h}"]))
         sum_u = sum(u for _, u in forces)
         # limb joint torques (quasi-static: gravity of the distal links and the contact wrenches),
         # scaled by the joint's limit: the wrists (5 N m) failed the a-posteriori RNEA check
         # when the hands pushed or carried (see model.quasi_static_limb_torques)
         mg = mass * G
         wrenches = {f: ([(pt, mg * u) for pt, u in forces[4 * i:4 * i + 4]], 0) for i, f in enumerate(FEET)}
-        wrenches.update({h: ([(limbs[h][0], mg * wa[f"u_{h}"])], mg * wa[f"tau_{h}"]) for h in HANDS})
+        wrenches.update({h: ([(hand_cp[h], mg * wa[f"u_{h}"])], mg * wa[f"tau_{h}"]) for h in HANDS})
         taus = m.quasi_static_limb_torques(tree, wrenches)
         # the waist also accelerates the torso, arms and head (model.inertial_torques)
         for group, inertial in m.inertial_torques(tree, tree_b, dt, st.inertial_groups).items():
@@ -371,19 +385,21 @@ class Window:
         for h in HANDS:
             sel = pp[f"{h}_sel"]
             loc = pp[f"{h}_loc"]
-            Rsel = sel[0] * ca.SX.eye(3)
+            Rsel = hand_R[h]
             target = sel[0] * loc
             target_b = sel[0] * loc
+            Rsel_b = sel[0] * ca.SX.eye(3)
             for j in range(M):
                 pj, _, Rj = objs_a[j]
-                Rsel = Rsel + sel[j + 1] * Rj
                 target = target + sel[j + 1] * (pj + Rj @ loc)
                 target_b = target_b + sel[j + 1] * (objs_b[j][0] + objs_b[j][2] @ loc)
-            pt = limbs[h][0]
+                Rsel_b = Rsel_b + sel[j + 1] * objs_b[j][2]
+            pt = hand_cp[h]
             add(f"{h} contact position", pt - target)
             # on at release only: u_k acts over [t_k, t_k+1], so the hand still touches at k+1
-            add(f"{h} release: still at the contact", limbs_b[h][0] - target_b)
-            n = Rsel @ pp[f"{h}_n"]
+            pt_b = limbs_b[h][0] - st.hand_standoff * (Rsel_b @ pp[f"{h}_n"]) if st.hand_standoff > 0 else limbs_b[h][0]
+            add(f"{h} release: still at the contact", pt_b - target_b)
+            n = hand_n[h]
             t1 = Rsel @ pp[f"{h}_t1"]
             t2 = Rsel @ pp[f"{h}_t2"]
             u = wa[f"u_{h}"]
@@ -409,9 +425,6 @@ class Window:
             # (docs/to.md, session 22). Rows: the sine-vector, in the surface's frame, of the hand's
             # rotation there from knot a to b, times {h}_grip_axes (the axes it may not turn about:
             # all three on a face; on a bar it may roll about the bar, see grip_axes)
-            Rsel_b = sel[0] * ca.SX.eye(3)
-            for j in range(M):
-                Rsel_b = Rsel_b + sel[j + 1] * objs_b[j][2]
             E = Rsel_b.T @ limbs_b[h][1] @ limbs[h][1].T @ Rsel
             turn = 0.5 * ca.vertcat(E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1])
             add(f"{h} grip: no rotation on the surface", ca.reshape(pp[f"{h}_grip_axes"], 3, 3) @ turn)

@@ -213,11 +213,16 @@ def hand_targets(data) -> dict:
             k0 = k
             while k0 > 0 and data.contact(k0 - 1, h) is not None and data.contact(k0 - 1, h).object_id == c.object_id:
                 k0 -= 1
-            pos = np.asarray(data.contact(k0, h).position, float)
+            c0 = data.contact(k0, h)
+            pos = np.asarray(c0.position, float)
+            n = np.zeros(3) if c0.normal is None else np.asarray(c0.normal, float)
+            n = n / max(np.linalg.norm(n), 1e-9)
             if c.object_id in data.obj_nom:
                 a, b = data.obj_nom[c.object_id][k0], data.obj_nom[c.object_id][k]
-                pos = b[:3] + rpy_to_rot(b[3:]) @ (rpy_to_rot(a[3:]).T @ (pos - a[:3]))
-            P[k], w[k] = pos, 1.0
+                Rab = rpy_to_rot(b[3:]) @ rpy_to_rot(a[3:]).T
+                pos, n = b[:3] + Rab @ (pos - a[:3]), Rab @ n
+            # the hand point stands off the surface (Options.hand_standoff)
+            P[k], w[k] = pos + data.prob.options.hand_standoff * n, 1.0
         out[h] = (P, w)
     return out
 
