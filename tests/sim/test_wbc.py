@@ -205,7 +205,10 @@ def test_hand_force_stops_when_the_object_is_lost():
     i, s = tr.index_at(wbc.status.t_ref)
     planned = wbc.hand_feedforward("left_hand", tr.phase_at(wbc.status.t_ref).contacts, i, s)
     assert np.linalg.norm(planned) > 1.0
-    assert np.linalg.norm(wbc.last_forces["left_hand"] - planned) < 0.05 * np.linalg.norm(planned) + 0.5
+    # the QP keeps the hands' sum and tilts their split by the grasp moment rows (w_grasp_moment),
+    # which turn the box towards its planned yaw: 3.6 N of 18.9 here since the hand offsets read
+    # the plan's contact points (session 41; 0.05 N before)
+    assert np.linalg.norm(wbc.last_forces["left_hand"] - planned) < 0.25 * np.linalg.norm(planned)
     box = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "box")
     for g in range(sim.model.ngeom):  # the box stops colliding: for the hands it is gone
         if sim.model.geom_bodyid[g] == box:
@@ -883,6 +886,9 @@ def test_grasp_moment_rows_give_the_carried_box_the_moment_its_orientation_needs
         residuals.append(np.linalg.norm(on_box - wanted))
     assert len(residuals) > 50 and not sim.has_fallen()
     if weight > 0:
-        assert max(residuals) < 0.05  # N m (measured < 0.005)
+        # N m: measured < 0.005 with the hand offsets as before session 41, 0.05-0.09 since they
+        # read the plan's contact points (the hands sit 1.2 cm further out, the box yaws more and
+        # the rows, a weighted task, trade the larger wanted moment against the others)
+        assert max(residuals) < 0.15
     else:
         assert max(residuals) > 0.3  # measured 1.26
