@@ -706,11 +706,25 @@ def _stitch(win: Window, data: ProblemData, parts) -> tuple:
         lxs.append(res[1].reshape(K + 1, nw)[:n])
         lgs.append(res[2].reshape(K, ng)[:n])
     Z = np.vstack(zs + [np.zeros((1, nw))])
+    _unwrap_object_angles(win, data, Z)
     LX = np.vstack(lxs + [np.zeros((1, nw))])
     LG = np.vstack(lgs)
     if Z.shape[0] != data.grid.K + 1:
         raise RuntimeError(f"stitched {Z.shape[0] - 1} knots, the whole horizon has {data.grid.K}")
     return Z.ravel(), (LX.ravel(), LG.ravel())
+
+
+def _unwrap_object_angles(win: Window, data: ProblemData, Z: np.ndarray) -> None:
+    """Make the objects' roll, pitch and yaw continuous across segment joins (in place, knot rows of
+    ``Z``). Why: a segment starts its objects at poses handed over as quaternions, so an angle past
+    +-pi comes back wrapped by 2 pi; S2 5.0 kg at yaw -1.2 (session 41) stitched the box's yaw from
+    -3.143 to 3.140 at 8.8 s, and the whole horizon's kinematic integration row read a violation of
+    6.28 there. Within a segment no knot-to-knot turn comes near pi."""
+    K = data.grid.K
+    for j in data.midx.values():
+        sl = win.W[f"o{j}_pose"]
+        cols = np.arange(sl.start, sl.stop)[3:6]
+        Z[:K, cols] = np.unwrap(Z[:K, cols], axis=0)
 
 
 def _vec(A: np.ndarray) -> np.ndarray:
