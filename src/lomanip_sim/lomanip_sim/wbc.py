@@ -909,8 +909,10 @@ class WholeBodyController:
             if c is None:
                 continue
             normals = self._contact_normals(c)
-            gap = 0.0  # the plan's site above the surface over the phase (median: a boundary point
-            if pts is not None:  # may carry the neighbouring phase's contact point)
+            # the plan's site height above the surface over the phase; the median, since a point on
+            # the phase's boundary may carry the neighbouring phase's contact point
+            gap = 0.0
+            if pts is not None:
                 inside = np.nonzero((tr.t >= ph.start - 1e-9) & (tr.t <= ph.end + 1e-9) & np.isfinite(pts[:, 0]))[0]
                 if len(inside):
                     gap = float(np.median(np.einsum("ij,ij->i", normals[inside], p_site[inside] - pts[inside])))
