@@ -288,15 +288,19 @@ class Window:
 
         # ---- hands' contact frames: surface rotation (world, or the selected object's), normal, and
         # the point the force acts at (Options.hand_standoff below the hand point along the normal)
-        hand_R, hand_n, hand_cp = {}, {}, {}
-        for h in HANDS:
+        def surface_rotation(h, objs):
             sel = pp[f"{h}_sel"]
-            Rsel = sel[0] * ca.SX.eye(3)
+            R = sel[0] * ca.SX.eye(3)
             for j in range(M):
-                Rsel = Rsel + sel[j + 1] * objs_a[j][2]
-            hand_R[h] = Rsel
-            hand_n[h] = Rsel @ pp[f"{h}_n"]
-            hand_cp[h] = limbs[h][0] - st.hand_standoff * hand_n[h] if st.hand_standoff > 0 else limbs[h][0]
+                R = R + sel[j + 1] * objs[j][2]
+            return R
+
+        def force_point(h, p_hand, R_surface):
+            return p_hand - st.hand_standoff * (R_surface @ pp[f"{h}_n"]) if st.hand_standoff > 0 else p_hand
+
+        hand_R = {h: surface_rotation(h, objs_a) for h in HANDS}
+        hand_n = {h: hand_R[h] @ pp[f"{h}_n"] for h in HANDS}
+        hand_cp = {h: force_point(h, limbs[h][0], hand_R[h]) for h in HANDS}
 
         # ---- forces (robot scaled by m g)
         sole_pts = sole_force_points(st.cop_margin_front)
@@ -388,17 +392,15 @@ class Window:
             Rsel = hand_R[h]
             target = sel[0] * loc
             target_b = sel[0] * loc
-            Rsel_b = sel[0] * ca.SX.eye(3)
             for j in range(M):
                 pj, _, Rj = objs_a[j]
                 target = target + sel[j + 1] * (pj + Rj @ loc)
                 target_b = target_b + sel[j + 1] * (objs_b[j][0] + objs_b[j][2] @ loc)
-                Rsel_b = Rsel_b + sel[j + 1] * objs_b[j][2]
+            Rsel_b = surface_rotation(h, objs_b)
             pt = hand_cp[h]
             add(f"{h} contact position", pt - target)
             # on at release only: u_k acts over [t_k, t_k+1], so the hand still touches at k+1
-            pt_b = limbs_b[h][0] - st.hand_standoff * (Rsel_b @ pp[f"{h}_n"]) if st.hand_standoff > 0 else limbs_b[h][0]
-            add(f"{h} release: still at the contact", pt_b - target_b)
+            add(f"{h} release: still at the contact", force_point(h, limbs_b[h][0], Rsel_b) - target_b)
             n = hand_n[h]
             t1 = Rsel @ pp[f"{h}_t1"]
             t2 = Rsel @ pp[f"{h}_t2"]

@@ -190,10 +190,13 @@ def _approach(data, h: str, k: int):
             continue
         if c.position is None or c.normal is None:
             return None
-        n = np.asarray(c.normal, float)
-        n = n / max(np.linalg.norm(n), 1e-9)
-        return np.asarray(c.position, float) + APPROACH_OFFSET * n, APPROACH_WEIGHT
+        return np.asarray(c.position, float) + APPROACH_OFFSET * _unit_normal(c), APPROACH_WEIGHT
     return None
+
+
+def _unit_normal(c) -> np.ndarray:
+    n = np.asarray(c.normal, float)
+    return n / max(np.linalg.norm(n), 1e-9)
 
 
 def hand_targets(data) -> dict:
@@ -215,8 +218,7 @@ def hand_targets(data) -> dict:
                 k0 -= 1
             c0 = data.contact(k0, h)
             pos = np.asarray(c0.position, float)
-            n = np.zeros(3) if c0.normal is None else np.asarray(c0.normal, float)
-            n = n / max(np.linalg.norm(n), 1e-9)
+            n = np.zeros(3) if c0.normal is None else _unit_normal(c0)
             if c.object_id in data.obj_nom:
                 a, b = data.obj_nom[c.object_id][k0], data.obj_nom[c.object_id][k]
                 Rab = rpy_to_rot(b[3:]) @ rpy_to_rot(a[3:]).T
