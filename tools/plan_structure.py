@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Structure of a plan: horizon, phases, steps per subtask, keyframe pelvis heights, step lengths.
 
-Why: the TO converges on the hand-written S1 fixture (16.4 s, 2 steps to the box, 8 carrying it)
+Why: the TO converges on the hand-written S1 fixture (17.0 s, 2 steps to the box, 8 carrying it)
 but stalls on S1 generated from prompts (36 s, 77 phases). This prints both side by side in the
 same terms so changes to perception's synthetic demonstration and the planner's schedule can be
 measured against the fixture.

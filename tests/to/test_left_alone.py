@@ -12,7 +12,7 @@ def _released_on_the_floor(prob):
     left there (supported, no contact) instead of the fixture's 'fixed' after the place."""
     on_floor = ObjectMotion(mode="supported", support="floor")
     for ph in prob.phases:
-        if 10.6 <= ph.start < 12.0:
+        if 11.2 <= ph.start < 12.6:
             ph.objects["box"] = on_floor
     return prob
 

@@ -28,8 +28,8 @@ def _phase_starting(prob, t):
 
 def test_rest_points_of_s1(s1):
     rest = solver.rest_points(s1)
-    # after the lift (walking starts) and before the last steps; not at the release (11.0 s)
-    assert rest == pytest.approx([3.8, 13.6])
+    # after the lift (walking starts) and before the last steps; not at the release (11.6 s)
+    assert rest == pytest.approx([4.4, 14.2])
     subtask_ends = [t1 for _, t1 in solver.segments(s1, rest=False)]
     for t in rest:
         before, after = _phase_ending(s1, t), _phase_starting(s1, t)
@@ -73,10 +73,10 @@ def test_grip_kept_across_a_cut_in_a_carry(g1, s1):
     normal in the box's frame) is the one the previous segment held, and the keyframe after the
     segment only anchors the warm start (no keyframe cost inside the segment)."""
     data = ProblemData(s1, g1)
-    lift = solver.segment_problem(s1, 3.0, 3.8, data.x_init, _scene_poses(s1))
+    lift = solver.segment_problem(s1, 3.0, 4.4, data.x_init, _scene_poses(s1))
     assert [kf.subtask_index for kf in lift.keyframes] == [1]
     assert ProblemData(lift, g1, moving=data.moving, pairs=data.pairs, stand=data.x_init, env_pairs=data.env_pairs).kf_knots == {}
-    t0, t1 = 3.8, 11.0
+    t0, t1 = 4.4, 11.6
     pose = np.array([0.9, 0.3, 0.55, 0.05, -0.04, 0.6])  # lifted, tilted, turned
     grips = {"left_hand": ("box", np.array([0.02, 0.2, 0.06]), np.array([0.0, 1.0, 0.0])),
              "right_hand": ("box", np.array([0.01, -0.2, 0.07]), np.array([0.0, -1.0, 0.0]))}
@@ -108,8 +108,8 @@ def test_carried_object_keeps_its_place_relative_to_the_base(g1, s1):
 
     data = ProblemData(s1, g1)
     pose = np.array([0.9, 0.0, 0.6, 0.0, 0.0, 0.0])
-    seg = solver.segment_problem(s1, 3.8, 11.0, data.x_init, {**_scene_poses(s1), "box": pose})
-    seg_walk = replace(seg, phases=[ph for ph in seg.phases if ph.end <= 5.4 + 1e-9], placement_goals=[],
+    seg = solver.segment_problem(s1, 4.4, 11.6, data.x_init, {**_scene_poses(s1), "box": pose})
+    seg_walk = replace(seg, phases=[ph for ph in seg.phases if ph.end <= 6.0 + 1e-9], placement_goals=[],
                        options=replace(seg.options, stepping_warm_start=False))  # x_guess = the nominal
     sd = ProblemData(seg_walk, g1, moving=data.moving, pairs=data.pairs, stand=data.x_init, env_pairs=data.env_pairs)
     X, traj = sd.x_guess, sd.obj_nom["box"]
@@ -120,7 +120,7 @@ def test_carried_object_keeps_its_place_relative_to_the_base(g1, s1):
 
 
 def test_a_lift_can_go_with_the_segment_before_it(s1):
-    """``Options.lift_with_previous_segment``: S1's carry opens with the lift (3.0-3.8 s, the box
+    """``Options.lift_with_previous_segment``: S1's carry opens with the lift (3.0-4.4 s, the box
     free from its first knot); with the option that phase ends the first segment instead of
     starting the second, so the second starts holding the lifted box at rest. Other cuts stay."""
     from dataclasses import replace

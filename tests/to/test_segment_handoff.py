@@ -35,9 +35,9 @@ def test_an_unmoved_object_keeps_its_pose_exactly(g1):
 def test_an_object_resting_on_a_support_is_put_back_on_it(g1):
     prob = load_problem("s1_basket", model=g1)
     for ph in prob.phases:   # as the planner writes S1: the box left on the floor after the place
-        if 10.6 <= ph.start < 12.0:
+        if 11.2 <= ph.start < 12.6:
             ph.objects["box"] = ObjectMotion(mode="supported", support="floor")
-    sd, poses = _segment(g1, prob, 3.0, 11.0)
+    sd, poses = _segment(g1, prob, 3.0, 11.6)
     k = sd.grid.K - 1
     assert sd.obj_mode(k, "box") == "supported"
     win, _ = solver.get_window(g1, sd.structure)
