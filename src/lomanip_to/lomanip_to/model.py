@@ -23,7 +23,8 @@ Contact frames (simplifications named):
 * hands: a single point contact 0.10 m ahead of the wrist-yaw joint (palm of the rubber hand),
   i.e. the hand patch is modelled as a point with a linearised friction cone (no contact torque).
 Collision geometry (simplification named): robot links are approximated by spheres placed along the
-segments between joint origins (radii chosen by hand to cover the link meshes roughly), not meshes.
+segments between joint origins (radii chosen by hand to cover the link meshes roughly), not meshes;
+MuJoCo's meshes reach up to 1-5 cm out of them (tests/to/test_sphere_coverage.py bounds each link).
 """
 
 from __future__ import annotations
