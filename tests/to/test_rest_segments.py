@@ -109,7 +109,7 @@ def test_carried_object_keeps_its_place_relative_to_the_base(g1, s1):
     data = ProblemData(s1, g1)
     pose = np.array([0.9, 0.0, 0.6, 0.0, 0.0, 0.0])
     seg = solver.segment_problem(s1, 4.4, 11.6, data.x_init, {**_scene_poses(s1), "box": pose})
-    seg_walk = replace(seg, phases=[ph for ph in seg.phases if ph.end <= 6.0 + 1e-9], placement_goals=[],
+    seg_walk = replace(seg, phases=[ph for ph in seg.phases if ph.end <= 5.4 + 1e-9], placement_goals=[],
                        options=replace(seg.options, stepping_warm_start=False))  # x_guess = the nominal
     sd = ProblemData(seg_walk, g1, moving=data.moving, pairs=data.pairs, stand=data.x_init, env_pairs=data.env_pairs)
     X, traj = sd.x_guess, sd.obj_nom["box"]
