@@ -6,7 +6,6 @@ import mujoco
 import numpy as np
 
 from lomanip_sim.robot_model import load_g1_model
-from lomanip_to.model import rpy_to_rot
 
 #: m, per link name fragment: the most a mesh vertex may lie outside every TO sphere
 BOUNDS = {"torso": 0.053, "shoulder_yaw": 0.042, "knee": 0.041, "elbow": 0.035, "hip_roll": 0.031,
@@ -14,17 +13,10 @@ BOUNDS = {"torso": 0.053, "shoulder_yaw": 0.042, "knee": 0.041, "elbow": 0.035, 
           "wrist_yaw": 0.024, "ankle_pitch": 0.016, "pelvis": 0.005}
 
 
-def _qpos(m, x):
-    q = np.zeros(m.nq)
-    q[:3] = x[:3]
-    mujoco.mju_mat2Quat(q[3:7], rpy_to_rot(x[3:6]).ravel())
-    q[7:36] = x[6:]
-    return q
-
-
 def _outside(g1, m, d, x) -> dict[str, float]:
     """Per robot body with collision meshes: the largest distance of a vertex outside every sphere."""
-    d.qpos[:] = _qpos(m, x)
+    q = g1.x_to_q(x)   # Pinocchio's order: position, quaternion (x, y, z, w), joints
+    d.qpos[:] = np.concatenate([q[:3], q[6:7], q[3:6], q[7:]])
     mujoco.mj_forward(m, d)
     centres = g1.numeric(x)["spheres"]
     radii = np.array([s.radius for s in g1.spheres])
