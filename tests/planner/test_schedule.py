@@ -146,8 +146,33 @@ def test_steps_follow_the_horizontal_distance_and_the_lift_opens_the_next_subtas
     steps = [p for p in ph if p.subtask_index == 2 and p.phase_type == WALKING]
     assert len(steps) == 4
     assert [p.end - p.start for p in steps] == pytest.approx([tm.step, tm.step, tm.step_up, tm.step_up])
-    # the last subtask grabs (no lift): the basket never moves
+    # without the scene's objects there is no pose to lift the grabbed basket from: it never moves
     assert not any("basket" in p.objects for p in ph)
+
+
+def test_the_last_grab_lifts_its_object_and_holds_it():
+    tm = Timing()
+    stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+    sched = plan_schedule(stance, _s1_subtasks(), tm, objects=_objects())
+    ph = sched.phases
+    kf_grab = sched.keyframes[2].time
+    assert not any("basket" in p.objects for p in ph if p.end <= kf_grab + 1e-9)
+    after = [p for p in ph if p.start >= kf_grab - 1e-9]
+    assert after and all(p.objects["basket"].mode == "free" and "right_hand" in p.contacts for p in after)
+    goal = next(g for g in sched.placement_goals if g.object_id == "basket")
+    assert goal.time == pytest.approx(kf_grab + tm.manipulate)
+    assert goal.position == pytest.approx((1.3, 0.0, 1.6 + tm.final_lift))
+    assert ph[-1].end - goal.time >= tm.retract - 1e-9   # held there to the end
+
+
+def test_a_last_grab_without_a_final_lift_ends_holding_it():
+    from dataclasses import replace
+
+    tm = replace(Timing(), final_lift=0.0)
+    stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+    sched = plan_schedule(stance, _s1_subtasks(), tm, objects=_objects())
+    assert not any("basket" in p.objects for p in sched.phases)
+    assert not any(g.object_id == "basket" for g in sched.placement_goals)
 
 
 def test_a_long_carry_off_the_heading_walks_forwards():

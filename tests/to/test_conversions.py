@@ -169,7 +169,7 @@ def test_options_round_trip_the_rows_on_the_motion_between_knots(model, name, va
     assert getattr(conv.options_from_msg(TrajectoryOptions(**{name: -1.0})), name) == 0.0  # off
 
 
-@pytest.mark.parametrize("name", ["lift_with_previous_segment", "load_in_double_support_margin",
+@pytest.mark.parametrize("name", ["lift_with_previous_segment", "segment_moving_objects", "load_in_double_support_margin",
                                   "resting_object_dynamics"])
 def test_options_round_trip_the_switches(model, name):
     from lomanip_msgs.msg import TrajectoryOptions

@@ -17,7 +17,7 @@ def test_a_failed_second_segment_returns_the_first_one_stitched_with_it(g1, monk
     def fake_stages(run, data, win, wd, threads, label, **kwargs):
         lbw, ubw, lbg, ubg, Pm, W0 = data.fill(win, *solver.homotopy_stages(data.prob.options, data)[-1])
         z = np.asarray(W0, float).ravel(order="F")
-        starts.append((data.grid.K, z.copy()))
+        starts.append((data.grid.K, z.copy(), win))
         status = "Solve_Succeeded" if len(starts) == 1 else "Maximum_Iterations_Exceeded"
         return z, np.zeros_like(z), np.zeros(data.grid.K * win.G.n), status, None, {}, Pm, lbg, ubg, 0.0
 
@@ -26,12 +26,15 @@ def test_a_failed_second_segment_returns_the_first_one_stitched_with_it(g1, monk
     assert len(starts) == 2   # stopped at the failed second segment
     assert not res.stats.converged and not res.success
     assert res.stats.status.startswith("Maximum_Iterations_Exceeded in subtask")
-    (k0, z0), (k1, _) = starts
+    (k0, z0, w0), (k1, _, w1) = starts
     assert res.t_knots[0] == 0.0 and abs(res.t_knots[-1] - segs[1][1]) < 1e-9
     assert len(res.t_knots) == k0 + k1 - 1   # the shared knot once
-    win, _ = solver.get_window(g1, res.data.structure)
-    first = z0.reshape(k0 + 1, win.W.n)[:k0, win.W["x"]]
+    # S1's segments carry their own objects (Options.segment_moving_objects): the box alone, not the basket
+    assert w0.W.n < solver.get_window(g1, res.data.structure)[0].W.n
+    first = z0.reshape(k0 + 1, w0.W.n)[:k0, w0.W["x"]]
     np.testing.assert_allclose(res.x_knots[:k0], first, atol=1e-12)   # the solved segment, unchanged
+    box = z0.reshape(k0 + 1, w0.W.n)[:k0, w0.W["o0_pose"]]
+    np.testing.assert_allclose(res.object_pose_knots["box"][:k0], box, atol=1e-12)
 
 
 def test_stitched_object_angles_are_continuous_across_a_wrapped_join(g1):

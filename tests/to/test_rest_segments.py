@@ -28,8 +28,9 @@ def _phase_starting(prob, t):
 
 def test_rest_points_of_s1(s1):
     rest = solver.rest_points(s1)
-    # after the lift (walking starts) and before the last steps; not at the release (11.6 s)
-    assert rest == pytest.approx([4.4, 14.2])
+    # after the lift (walking starts), before the last steps and before the hands take the basket
+    # (whose lift makes the piece after it 1.6 s long); not at the release (11.6 s)
+    assert rest == pytest.approx([4.4, 14.2, 16.6])
     subtask_ends = [t1 for _, t1 in solver.segments(s1, rest=False)]
     for t in rest:
         before, after = _phase_ending(s1, t), _phase_starting(s1, t)
@@ -53,7 +54,7 @@ def test_option_switches_the_cuts(s1):
     off = replace(s1, options=replace(s1.options, rest_segments=False))
     assert solver.segments(off) == solver.segments(s1, rest=False)
     assert solver.segments(on) == solver.segments(s1, rest=True)
-    assert len(solver.segments(on)) == len(solver.segments(off)) + 2
+    assert len(solver.segments(on)) == len(solver.segments(off)) + 3
 
 
 def test_no_cut_in_the_middle_of_a_push(g1):

@@ -11,8 +11,9 @@ stance and each keyframe the schedule inserts:
 2. the manipulation of the subtask, from its verb and its contacts:
    * pick / grab / lift / take: reach (no hand contact) -> grasp (hands on the object, object still;
      the keyframe) -> lift (object ``free``, carried from then on). The lift opens the next subtask
-     (as in the hand-written fixtures); in the plan's last subtask only a prompt that says so
-     ("pick up", "lift", ...) lifts, "grab the basket" ends holding it;
+     (as in the hand-written fixtures); in the plan's last subtask a prompt that says so ("pick
+     up", "lift", ...) lifts it free, and a grab ("grab the basket") lifts it ``Timing.final_lift``
+     to a placement goal above where it rests and holds it there to the end;
    * place / put / set: lower the carried object to its placement goal (``free``) -> release (hands
      still in contact, object resting) -> retract (hands free); the object is no longer carried
      and rests (``supported``) on what it was set on to the end of the subtask, then stays put;
@@ -65,7 +66,7 @@ _LIFT_VERBS = ("pick up", "lift", "take", "retrieve", "carry")
 
 def lifts(prompt: str) -> bool:
     """Whether a prompt asks to lift what it grasps ("pick up the box"), not only to grab it
-    ("grab the basket" as the plan's last subtask ends holding it where it is)."""
+    ("grab the basket": the plan's last subtask then lifts it only ``Timing.final_lift``)."""
     text = prompt.lower()
     return any(re.search(rf"\b{re.escape(v)}\b", text) for v in _LIFT_VERBS)
 
@@ -104,6 +105,10 @@ class Timing:
     # weight shift). Why: S1's plans stood up from the squat and stepped at once; in that first step
     # they swung the box up to 1.0-1.3 m and rolled the pelvis 0.4-0.8 rad (docs/to.md, session 21)
     lift_settle: float = 0.4
+    # m: the plan's last subtask lifts what it grabs by this much (a placement goal above where the
+    # object rests, after ``manipulate``) and holds it to the end; 0 = it ends holding the object where
+    # it is. Why: S1's success test needs the basket 10 cm above its shelf (lomanip_sim.task_success)
+    final_lift: float = 0.15
 
 
 @dataclass
@@ -365,6 +370,13 @@ def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timi
                     b.add(tm.manipulate, sk.index)
                 elif pos < len(subtasks) - 1:
                     lift_next = obj                # the next subtask opens with the lift
+                elif tm.final_lift > 0 and obj in b.objects:   # the plan's last grab takes it off its support
+                    o = b.objects[obj]
+                    b.carried.add(obj)
+                    b.add(tm.manipulate, sk.index)
+                    goal = np.asarray(o.position, float) + [0.0, 0.0, tm.final_lift]
+                    out.placement_goals.append(PlacementGoal(obj, tuple(float(v) for v in goal), float(o.rpy()[2]),
+                                                             time=b.t))
             if "place" in actions:
                 if not b.carried:
                     raise ScheduleError(f"subtask {sk.index} ({sk.prompt!r}): nothing is held to place")

@@ -309,6 +309,14 @@ class Options:
     #: there at rest holding it (S2's carry: the robot-and-box CoM 2 cm past the soles at its first
     #: knot, infeasible; docs/to.md, session 33). Off by default (measured on S2 only)
     lift_with_previous_segment: bool = False
+    #: each subtask segment carries variables only for the objects that move or are touched by a
+    #: hand in it (:func:`lomanip_to.solver.segment_moving`); the others stand as static scene
+    #: objects at the poses the segments before left them, and the stitch fills their variables
+    #: (pose held, velocity and support forces zero) on the whole horizon. Why: S1 with the basket
+    #: lifted at its end made the basket a moving object of every segment, every segment's NLP
+    #: changed and the solve took 974 s against 505 (docs/to.md, session 42). Off by default: it
+    #: changes every segmented plan (S2's executed nominal plan included), measured on S1 only
+    segment_moving_objects: bool = False
     #: iteration cap of the whole-horizon polish after the subtask solves (0 = keep the stitched one).
     #: Off by default: on S1 it never converged within 60 iterations and cost 90-150 s a run
     #: (docs/to.md); the stitched trajectory is evaluated on the whole problem's rows and checked as it is.

@@ -423,19 +423,21 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
         parts, converged, status, grips = [], True, "", {}
         for i, (t0, t1) in enumerate(segs):
             sp = segment_problem(prob, t0, t1, x_init, poses, grips)
-            sd = ProblemData(sp, model, moving=data.moving, pairs=data.pairs, stand=data.x_init,
-                             env_pairs=data.env_pairs)
+            moving = segment_moving(data.moving, sp) if opt.segment_moving_objects else data.moving
+            sd = ProblemData(sp, model, moving=moving, pairs=data.pairs, stand=data.x_init,
+                             env_pairs=[e for e in data.env_pairs if e[0] in moving])
+            swin, swd = (win, wd) if sd.structure == data.structure else get_window(model, sd.structure)
             where = f"subtask {sp.phases[0].subtask_index} ({t0:.1f}-{t1:.1f} s)"
-            res = _run_stages(run, sd, win, wd, threads, where + " ")
-            parts.append((sd, res))
+            res = _run_stages(run, sd, swin, swd, threads, where + " ")
+            parts.append((sd, res, swin))
             if not _converged(res[3]):
                 converged = False
                 status = f"{res[3]} in {where}"
                 break
-            Wm = res[0].reshape(sd.grid.K + 1, win.W.n).T
-            x_init = Wm[win.W["x"], sd.grid.K - 1].copy()
-            poses = _poses_at_end(win, sd, Wm, poses)
-            grips = _grips_at_end(win, sd, res[6])
+            Wm = res[0].reshape(sd.grid.K + 1, swin.W.n).T
+            x_init = Wm[swin.W["x"], sd.grid.K - 1].copy()
+            poses = _poses_at_end(swin, sd, Wm, poses)
+            grips = _grips_at_end(swin, sd, res[6])
         if converged:
             status = "; ".join(f"{kind} ({', '.join(names)})" for kind in _BEST_ITERATE_STATUSES
                                if (names := [st["stage"].strip() for st in run.stages if st["status"] == kind])) \
@@ -457,7 +459,7 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
             if prefix is not None:   # the solved subtasks and the failed one's iterate, from 0
                 data, z, nlp, args, Pm, lbg, ubg, f = prefix
             else:  # the failed segment's iterate alone, on its own clock (shifted back below)
-                data, (z, _, _, _, nlp, args, Pm, lbg, ubg, f) = parts[-1]
+                data, (z, _, _, _, nlp, args, Pm, lbg, ubg, f), win = parts[-1]
                 t_failed = segs[len(parts) - 1][0]
     solve_time = time.perf_counter() - t_start - build_time
     res = extract(model, data, win, nlp, z, args, Pm, lbg, ubg)
@@ -562,6 +564,20 @@ def segments(prob: Problem, rest: bool | None = None) -> list:
             out.append((t0, ph.end))
             t0 = ph.end
     return out
+
+
+def segment_moving(moving: list, sp: Problem) -> list:
+    """The objects of ``moving`` (the whole problem's moving objects, in its order) that segment
+    ``sp`` moves, touches with a hand or attaches others to (``Options.segment_moving_objects``);
+    the rest stand in it as scene objects at the poses ``sp`` gives them."""
+    used = set()
+    for ph in sp.phases:
+        for oid, mo in ph.objects.items():
+            used.add(oid)
+            if getattr(mo, "attached_to", None):
+                used.add(mo.attached_to)
+        used.update(c.object_id for h, c in ph.contacts.items() if h in HANDS)
+    return [oid for oid in moving if oid in used]
 
 
 def segment_problem(prob: Problem, t0: float, t1: float, x_init, poses: dict, grips: dict | None = None) -> Problem:
@@ -696,22 +712,53 @@ def _initial_poses(prob: Problem) -> dict:
 
 
 def _stitch(win: Window, data: ProblemData, parts) -> tuple:
-    """Concatenate segment solutions (primal and multipliers) on the whole-horizon grid."""
+    """Concatenate segment solutions (primal and multipliers) on the whole-horizon grid.  A segment
+    solved on its own window (``Options.segment_moving_objects``) is mapped onto the whole one
+    (:func:`_onto_window`); its constraint multipliers are not, so the stitch then hands back no
+    multipliers (a polish after it starts cold)."""
     nw, ng = win.W.n, win.G.n
     zs, lxs, lgs = [], [], []
-    for i, (sd, res) in enumerate(parts):
+    same = all(swin is win for _, _, swin in parts)
+    for i, (sd, res, swin) in enumerate(parts):
         K = sd.grid.K
         n = K if i == len(parts) - 1 else K - 1  # a segment's end knot is the next one's first knot
-        zs.append(res[0].reshape(K + 1, nw)[:n])
-        lxs.append(res[1].reshape(K + 1, nw)[:n])
-        lgs.append(res[2].reshape(K, ng)[:n])
+        zs.append(_onto_window(win, data, swin, sd, res[0].reshape(K + 1, swin.W.n)[:n], primal=True))
+        lxs.append(_onto_window(win, data, swin, sd, res[1].reshape(K + 1, swin.W.n)[:n], primal=False))
+        if same:
+            lgs.append(res[2].reshape(K, ng)[:n])
     Z = np.vstack(zs + [np.zeros((1, nw))])
     _unwrap_object_angles(win, data, Z)
-    LX = np.vstack(lxs + [np.zeros((1, nw))])
-    LG = np.vstack(lgs)
     if Z.shape[0] != data.grid.K + 1:
         raise RuntimeError(f"stitched {Z.shape[0] - 1} knots, the whole horizon has {data.grid.K}")
+    if not same:
+        return Z.ravel(), None
+    LX = np.vstack(lxs + [np.zeros((1, nw))])
+    LG = np.vstack(lgs)
     return Z.ravel(), (LX.ravel(), LG.ravel())
+
+
+def _onto_window(win: Window, data: ProblemData, swin: Window, sd: ProblemData, Zs: np.ndarray,
+                 primal: bool) -> np.ndarray:
+    """Knot rows ``Zs`` of segment ``sd``'s window ``swin`` as rows of the whole problem's window
+    ``win``: each moving object's blocks from the segment's index of that object; an object the
+    segment left standing (not among its moving ones) holds the pose the segment gave it with zero
+    velocity and support forces (as the whole problem's bounds have a "fixed" object), and zero
+    multipliers (``primal`` False)."""
+    if swin is win:
+        return Zs
+    out = np.zeros((Zs.shape[0], win.W.n))
+    for name, sl in win.W.blocks.items():
+        if name.startswith("o") and "_" in name and name[1:name.index("_")].isdigit():
+            oid = data.moving[int(name[1:name.index("_")])]
+            kind = name[name.index("_"):]
+            if oid in sd.midx:
+                out[:, sl] = Zs[:, swin.W[f"o{sd.midx[oid]}{kind}"]]
+            elif primal and kind == "_pose":
+                o = sd.prob.object(oid)
+                out[:, sl] = np.concatenate([np.asarray(o.position, float), o.rpy()])
+        else:
+            out[:, sl] = Zs[:, swin.W[name]]
+    return out
 
 
 def _unwrap_object_angles(win: Window, data: ProblemData, Z: np.ndarray) -> None:
