@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
 """Structure of a plan: horizon, phases, steps per subtask, keyframe pelvis heights, step lengths.
 
-Why: the TO converges on the hand-written S1 fixture (17.0 s, 2 steps to the box, 8 carrying it)
-but stalls on S1 generated from prompts (36 s, 77 phases). This prints both side by side in the
-same terms so changes to perception's synthetic demonstration and the planner's schedule can be
-measured against the fixture.
+Why: the TO converges on the hand-written S1 fixture (18.2 s, 2 steps to the box, 8 carrying it,
+the basket lifted at the end) but stalls on S1 generated from prompts (36 s, 77 phases). This
+prints both side by side in the same terms so changes to perception's synthetic demonstration and
+the planner's schedule can be measured against the fixture.
 
     .venv/bin/python tools/plan_structure.py                       # S1 fixture vs S1 from prompts
     .venv/bin/python tools/plan_structure.py --task s2_trolley --set box_yaw=0.6

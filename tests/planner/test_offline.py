@@ -58,7 +58,7 @@ def s1_plan():
 
 
 def test_s1_from_prompts_has_the_fixtures_structure(s1_plan):
-    """Like the hand-written S1 fixture (17.0 s: 2 steps to the box, 8 carrying it, 2 onto it): the
+    """Like the hand-written S1 fixture (18.2 s: 2 steps to the box, 8 carrying it, 2 onto it): the
     robot works the box from its own side, carries it about 0.3 m a step, squats moderately."""
     from lomanip_to.problem import WALKING
 
