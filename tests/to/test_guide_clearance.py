@@ -21,9 +21,10 @@ def test_guide_surrogate_grows_by_the_leg_clearance(g1):
     legs = others = 0
     for i, (s, (oid, pi)) in enumerate(data.pairs):
         true = prob.object(oid).primitives[pi].half_extents()
-        grow = data._clearance(s)
+        # per knot: the fixture's carried_object_clearance grows the carried box's pairs while it is carried
+        grow = np.array([data._clearance(s, k, oid) for k in range(data.grid.K)])
         np.testing.assert_allclose(Pf[win.P[f"c{i}_half"], :], np.tile(true[:, None], (1, data.grid.K)))
-        np.testing.assert_allclose(Pg[win.P[f"c{i}_half"], :], np.tile((true + grow)[:, None], (1, data.grid.K)))
-        legs += grow == LEG_OBJECT_CLEARANCE
-        others += grow == 0.0
+        np.testing.assert_allclose(Pg[win.P[f"c{i}_half"], :], true[:, None] + grow[None, :])
+        legs += data._clearance(s) == LEG_OBJECT_CLEARANCE
+        others += data._clearance(s) == 0.0
     assert legs and others
