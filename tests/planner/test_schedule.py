@@ -209,3 +209,17 @@ def test_a_long_carry_off_the_heading_walks_forwards():
     assert pairs[0][0][1] - pairs[0][1][1] == pytest.approx(0.24, abs=1e-6)
     assert pairs[-1][0] == pytest.approx((0.85, 1.12)) and pairs[-1][1] == pytest.approx((0.85, 0.88))
     assert walking_heading(np.array([[0.0, 0.0], [0.85, 1.0]]), 0.5, 0.0, 0.0) > 0.5
+
+
+def test_a_last_grab_lifts_an_object_from_where_the_plan_placed_it():
+    q = G1_STAND_QPOS.copy()
+    subtasks = [SubtaskKeyframe(0, "pick up the box", q, _feet(0.0) + _hands(0.42, 0.15, "box")),
+                SubtaskKeyframe(1, "place the box", q, _feet(0.45) + _hands(0.87, 0.15, "box"),
+                                placement=PlacementGoal("box", (0.87, 0.0, 0.15), 0.3)),
+                SubtaskKeyframe(2, "grab the box", q, _feet(0.45) + _hands(0.87, 0.15, "box"))]
+    stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+    sched = plan_schedule(stance, subtasks, Timing(), objects=_objects())
+    goal = sched.placement_goals[-1]
+    assert goal.object_id == "box" and goal.time > sched.placement_goals[0].time
+    assert goal.position == pytest.approx((0.87, 0.0, 0.15 + Timing().final_lift))   # not its start (0.42)
+    assert goal.yaw == pytest.approx(0.3)

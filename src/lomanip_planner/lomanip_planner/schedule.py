@@ -200,12 +200,17 @@ class _Builder:
         self.objects = {o.id: o for o in (objects or [])}
         self.footprints: dict[str, Footprint] = {o.id: footprint_of(o, o.position, o.rpy())
                                                  for o in self.objects.values() if o.primitives}
+        # object -> (position, yaw) where it stands now: its scene pose, or where a place or push left it
+        self.poses: dict[str, tuple[np.ndarray, float]] = {o.id: (np.asarray(o.position, float), float(o.rpy()[2]))
+                                                           for o in self.objects.values()}
 
     def moved(self, oid: str, position, yaw: float) -> None:
         """An object now stands at its placement goal (its footprint moves with it)."""
         o = self.objects.get(oid)
         if o is not None and o.primitives:
             self.footprints[oid] = footprint_of(o, position, (0.0, 0.0, yaw))
+        if o is not None:
+            self.poses[oid] = (np.asarray(position, float), float(yaw))
 
     def support_under(self, oid: str, position) -> str:
         """What an object placed at ``position`` (its origin, kept level) rests on: the scene object
@@ -371,12 +376,11 @@ def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timi
                 elif pos < len(subtasks) - 1:
                     lift_next = obj                # the next subtask opens with the lift
                 elif tm.final_lift > 0 and obj in b.objects:   # the plan's last grab takes it off its support
-                    o = b.objects[obj]
+                    at, yaw = b.poses[obj]
                     b.carried.add(obj)
                     b.add(tm.manipulate, sk.index)
-                    goal = np.asarray(o.position, float) + [0.0, 0.0, tm.final_lift]
-                    out.placement_goals.append(PlacementGoal(obj, tuple(float(v) for v in goal), float(o.rpy()[2]),
-                                                             time=b.t))
+                    goal = at + [0.0, 0.0, tm.final_lift]
+                    out.placement_goals.append(PlacementGoal(obj, tuple(float(v) for v in goal), yaw, time=b.t))
             if "place" in actions:
                 if not b.carried:
                     raise ScheduleError(f"subtask {sk.index} ({sk.prompt!r}): nothing is held to place")
