@@ -5,6 +5,7 @@ uncovered hips did to a carried box: docs/execution.md, session 42."""
 import mujoco
 import numpy as np
 
+from lomanip_sim import frames
 from lomanip_sim.robot_model import load_g1_model
 
 #: m, per link name fragment: the most a mesh vertex may lie outside every TO sphere
@@ -15,8 +16,7 @@ BOUNDS = {"torso": 0.053, "shoulder_yaw": 0.042, "knee": 0.041, "elbow": 0.035, 
 
 def _outside(g1, m, d, x) -> dict[str, float]:
     """Per robot body with collision meshes: the largest distance of a vertex outside every sphere."""
-    q = g1.x_to_q(x)   # Pinocchio's order: position, quaternion (x, y, z, w), joints
-    d.qpos[:] = np.concatenate([q[:3], q[6:7], q[3:6], q[7:]])
+    d.qpos[:] = frames.pinocchio_q_to_mujoco(g1.x_to_q(x))
     mujoco.mj_forward(m, d)
     centres = g1.numeric(x)["spheres"]
     radii = np.array([s.radius for s in g1.spheres])

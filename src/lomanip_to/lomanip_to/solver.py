@@ -573,9 +573,7 @@ def segment_moving(moving: list, sp: Problem) -> list:
     used = set()
     for ph in sp.phases:
         for oid, mo in ph.objects.items():
-            used.add(oid)
-            if getattr(mo, "attached_to", None):
-                used.add(mo.attached_to)
+            used.update((oid, mo.attached_to) if mo.attached_to else (oid,))
         used.update(c.object_id for h, c in ph.contacts.items() if h in HANDS)
     return [oid for oid in moving if oid in used]
 
@@ -748,9 +746,8 @@ def _onto_window(win: Window, data: ProblemData, swin: Window, sd: ProblemData, 
         return Zs
     out = np.zeros((Zs.shape[0], win.W.n))
     for name, sl in win.W.blocks.items():
-        if name.startswith("o") and "_" in name and name[1:name.index("_")].isdigit():
-            oid = data.moving[int(name[1:name.index("_")])]
-            kind = name[name.index("_"):]
+        if (obj_block := re.fullmatch(r"o(\d+)(_\w+)", name)) is not None:   # o{j}_pose, o{j}_vel, o{j}_us
+            oid, kind = data.moving[int(obj_block[1])], obj_block[2]
             if oid in sd.midx:
                 out[:, sl] = Zs[:, swin.W[f"o{sd.midx[oid]}{kind}"]]
             elif primal and kind == "_pose":
