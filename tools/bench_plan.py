@@ -5,8 +5,10 @@ For every task (ros_ws/config/tasks/*.yaml) and every point of its scenario's gr
 (src/lomanip_sim/config/scenarios.yaml) it runs the ROS-free pipeline (lomanip_planner.offline) and
 prints, per case: stage times, the retargeted keyframes' worst contact residual, joint limits,
 smallest self-collision distance, worst stance-foot tilt and IK time per keyframe. With --solve it
-also runs the TO twice (the paper's Sec. V-C ablation): AllKeyframe (base cost, foot cost, warm
-start) and NoKeyframe (all three off), and prints convergence, physical success, iterations, time.
+also runs the TO twice (the paper's Sec. V-C ablation) with the task file's TO options (what the
+plan service gets): AllKeyframe (base cost, foot cost, warm start) and NoKeyframe (all three off),
+and prints convergence, physical success, iterations, time. Each TO result is saved under
+<out>/to/ for tools/bench_exec.py --bench-to <out>/to.
 
     .venv/bin/python tools/bench_plan.py                      # retargeting over both grids (~3 min)
     .venv/bin/python tools/bench_plan.py --solve --cases 1    # + TO on the first grid point of each task
@@ -41,15 +43,30 @@ def grid(scenario: str, base: dict) -> list[dict]:
     return out
 
 
-def variant_options(variant: str, max_iterations: int):
-    from lomanip_to.problem import Options
+def variant_options(task: dict, variant: str, max_iterations: int | None):
+    """The task file's TO options (what the plan service gets) with the variant's keyframe switches."""
+    from lomanip_to.fixtures import load_options
 
     on = variant == "AllKeyframe"
-    return Options(use_keyframe_base_cost=on, use_keyframe_foot_cost=on, use_keyframe_warm_start=on,
-                   max_iterations=max_iterations)
+    opt = load_options(task.get("options")).replaced(
+        use_keyframe_base_cost=on, use_keyframe_foot_cost=on, use_keyframe_warm_start=on)
+    return opt if max_iterations is None else opt.replaced(max_iterations=max_iterations)
 
 
-def run_case(task: dict, overrides: dict, solve: bool, variants: list[str], max_iterations: int) -> dict:
+def _progress(label: str):
+    """A line per TO stage and every 50 iterations, so a long solve shows where it is."""
+    last = {"stage": None}
+
+    def report(pr):
+        if pr.stage != last["stage"] or pr.iteration % 50 == 0:
+            last["stage"] = pr.stage
+            print(f"    {label}: {pr.stage or 'solve'} iteration {pr.iteration}, violation "
+                  f"{pr.constraint_violation:.1e}, {pr.elapsed:.0f} s", flush=True)
+    return report
+
+
+def run_case(task: dict, overrides: dict, solve: bool, variants: list[str], max_iterations: int | None,
+             out: Path | None = None) -> dict:
     from dataclasses import replace
 
     from lomanip_planner import offline
@@ -80,10 +97,19 @@ def run_case(task: dict, overrides: dict, solve: bool, variants: list[str], max_
     if solve:
         row["to"] = {}
         for v in variants:
-            prob = replace(plan.problem, options=variant_options(v, max_iterations))
+            prob = replace(plan.problem, options=variant_options(task, v, max_iterations))
             t0 = time.perf_counter()
-            res = solver.solve(prob)
+            res = solver.solve(prob, progress=_progress(f"{task['scenario']} {v}"))
             s = res.stats
+            if out is not None:  # tools/bench_exec.py --bench-to <out>/to executes it
+                name = f"{task['scenario']}_prompts_" + "_".join(f"{k}{overrides[k]:g}" for k in sorted(overrides)
+                                                                if isinstance(overrides[k], (int, float)))
+                out.mkdir(parents=True, exist_ok=True)
+                res.save(out / f"{name}_{v}.npz")
+                saved = json.loads((out / "summary.json").read_text()) if (out / "summary.json").is_file() else {"rows": []}
+                saved["rows"] = [r for r in saved["rows"] if (r["case"], r["variant"]) != (name, v)]
+                saved["rows"].append({"case": name, "variant": v, "overrides": overrides})
+                (out / "summary.json").write_text(json.dumps(saved, indent=1))
             row["to"][v] = {"converged": s.converged, "success": bool(res.success), "iterations": s.iterations,
                             "wall_s": time.perf_counter() - t0, "peak_mb": s.peak_memory_mb,
                             "status": s.status_message()}
@@ -97,7 +123,8 @@ def main() -> int:
     ap.add_argument("--cases", type=int, default=0, help="first N grid points per task (0 = all)")
     ap.add_argument("--solve", action="store_true", help="also run the TO (minutes per case)")
     ap.add_argument("--variants", nargs="+", default=["AllKeyframe", "NoKeyframe"])
-    ap.add_argument("--max-iterations", type=int, default=500)
+    ap.add_argument("--max-iterations", type=int, default=None,
+                    help="ipopt's cap per stage (default: the task file's, else the TO's default)")
     ap.add_argument("--out", type=Path, default=ROOT / "runs/bench_plan")
     args = ap.parse_args()
 
@@ -108,7 +135,7 @@ def main() -> int:
         cases = cases[: args.cases] if args.cases else cases
         for ov in cases:
             print(f"{name} {ov}", flush=True)
-            row = run_case(task, ov, args.solve, args.variants, args.max_iterations)
+            row = run_case(task, ov, args.solve, args.variants, args.max_iterations, args.out / "to")
             row["task"] = name
             rows.append(row)
             if "error" in row:

@@ -38,6 +38,19 @@ def foot_cop(model, data, body: int) -> np.ndarray | None:
     return (R.T @ (found[0] - data.xpos[body]))[:2]
 
 
+def _touching(model, data, body: int) -> list[str]:
+    """Names of the bodies other than the world (floor) that ``body``'s geoms touch now."""
+    import mujoco
+
+    out = set()
+    for c in data.contact[: data.ncon]:
+        b1, b2 = model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]
+        other = b2 if b1 == body else b1 if b2 == body else None
+        if other is not None and other != 0:
+            out.add(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, other))
+    return sorted(out)
+
+
 def trace_line(ex, objects: list[str]) -> str:
     """One line of the trace at the execution's current time."""
     import mujoco
@@ -80,8 +93,24 @@ def trace_line(ex, objects: list[str]) -> str:
         planned = "stance" if phase is not None and f in phase.contacts else "swing"
         cop = foot_cop(m, d, w.foot_body[f])
         cop_s = f" cop {np.round(cop, 3)}" if cop is not None else ""
-        parts.append(f"{f[0]}f {planned} f {np.linalg.norm(w.measured_forces[f]):4.0f}{cop_s}")
+        err = d.site_xpos[w.site_id[f]] - lerp(w.refs.site_p[f])
+        parts.append(f"{f[0]}f {planned} f {np.linalg.norm(w.measured_forces[f]):4.0f}{cop_s} err {np.round(err, 3)}"
+                     + "".join(f" on {name}" for name in _touching(m, d, w.foot_body[f])))
     return " | ".join(parts)
+
+
+def _grid_overrides(npz: Path) -> dict:
+    """The grid point (``box_mass``, ``box_yaw``, ...) a tools/bench_to.py result was solved at, from
+    the summary.json beside it ({} if there is none): a plan traced in its nominal world would be
+    executed in the wrong scene."""
+    import json
+
+    summary = npz.parent / "summary.json"
+    if not summary.is_file():
+        return {}
+    rows = json.loads(summary.read_text())
+    rows = rows.get("rows", []) if isinstance(rows, dict) else []
+    return next((dict(r.get("overrides") or {}) for r in rows if f"{r.get('case')}_{r.get('variant')}" == npz.stem), {})
 
 
 def _in_task_world(plan: Path, problem: Path, scenario: str, overrides: dict):
@@ -147,12 +176,15 @@ def main() -> int:
         traj, sim = _in_task_world(args.npz, args.npz.with_suffix(".problem.pkl"), task["scenario"], overrides)
     else:
         problem = args.problem or bench_exec._problem_of(args.npz.stem)
-        prob = fixtures.load_problem(problem, {})
+        overrides = _grid_overrides(args.npz)
+        prob = fixtures.load_problem(problem, overrides)
         res = TOResult.load(args.npz)
         if res.t is None:
             res.densify()
         traj = from_to_result(res, prob.phases)
-        sim, traj.scenario = bench_exec.plan_world(problem, {}, prob, traj.qpos(0))
+        sim, traj.scenario = bench_exec.plan_world(problem, overrides, prob, traj.qpos(0))
+        if overrides:
+            print(f"world: {problem} with {overrides}")
     ex = Execution(sim, traj, gains=gains)
     movable = [o for o in traj.objects if o in sim.world.objects and sim.world.objects[o].movable]
     ex.start()
