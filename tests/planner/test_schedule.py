@@ -223,3 +223,20 @@ def test_a_last_grab_lifts_an_object_from_where_the_plan_placed_it():
     assert goal.object_id == "box" and goal.time > sched.placement_goals[0].time
     assert goal.position == pytest.approx((0.87, 0.0, 0.15 + Timing().final_lift))   # not its start (0.42)
     assert goal.yaw == pytest.approx(0.3)
+
+
+def test_a_floor_step_towards_a_box_to_step_onto_stays_off_its_footprint():
+    # the feet end the placing subtask 0.42 m behind the placed box's centre (its near face 0.22 m
+    # ahead of them): longer than a step, so one floor step comes before the step up; it must keep
+    # the sole off the box (FOOTHOLD_CLEARANCE), not land halfway, under the box's edge
+    from lomanip_planner.schedule import FOOTHOLD_CLEARANCE
+
+    stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+    sched = plan_schedule(stance, _s1_subtasks(), Timing(), objects=_objects())
+    near_face = 0.87 - 0.2
+    floor_steps = [c.position for ph in sched.phases if ph.subtask_index == 2
+                   for limb, c in ph.contacts.items() if limb.endswith("foot") and c.object_id == FLOOR]
+    assert len({tuple(np.round(p, 3)) for p in floor_steps}) > 2   # it does step on the floor first
+    assert max(p[0] for p in floor_steps) <= near_face - FOOTHOLD_CLEARANCE + 1e-6
+    on_box = sched.phases[-1].contacts
+    assert on_box["left_foot"].object_id == "box" and on_box["right_foot"].object_id == "box"

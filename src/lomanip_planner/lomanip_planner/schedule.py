@@ -239,6 +239,14 @@ class _Builder:
         onto = {targets[f][1] for f in targets} | {self.stance.surface(f) for f in FEET}
         return [fp for oid, fp in self.footprints.items() if oid not in held and oid not in onto]
 
+    def _foothold_obstacles(self, foot: str) -> list[Footprint]:
+        """Footprints an intermediate foothold of ``foot`` keeps clear of: every object the hands do
+        not hold but the surface the foot stands on, the one it is about to step onto included (the
+        route may end on S1's box; a floor step halfway there put the right sole's toe 12 cm under
+        the box, and the generated S1's TO stopped at its cap on that foothold, session 44)."""
+        held = {c.object_id for c in self.held.values()} | self.carried
+        return [fp for oid, fp in self.footprints.items() if oid not in held and oid != self.stance.surface(foot)]
+
     def _route(self, targets: dict[str, tuple[np.ndarray, str]]) -> np.ndarray:
         """Route of the mid-feet point to the targets' round the objects in the way."""
         a = 0.5 * (self.stance.left + self.stance.right)
@@ -278,7 +286,6 @@ class _Builder:
             # foot takes a double support before the first swing (without it the TO whipped the hips)
             self.add(tm.weight_shift, subtask, objects=objects)
         route = self._route(targets)
-        obstacles = self._obstacles(targets)
         n = max(1, math.ceil((max([moves[f] for f in moving] + [route_length(route)]) - 1e-6) / tm.max_step_length))
         starts = {f: self.stance.foot(f).copy() for f in moving}
         half_width = 0.5 * float(np.linalg.norm(self.stance.left[:2] - self.stance.right[:2]))
@@ -304,7 +311,7 @@ class _Builder:
                 surface = targets[f][1] if i == n else self.stance.surface(f)
                 if i < n:   # intermediate footholds stay on the surface the foot started on, off objects
                     pos[2] = starts[f][2]
-                    pos[:2] = _clear_of(pos[:2], obstacles)
+                    pos[:2] = _clear_of(pos[:2], self._foothold_obstacles(f))
                 if f == "left_foot":
                     self.stance.left, self.stance.left_surface = pos, surface
                 else:
