@@ -86,6 +86,8 @@ def trace_line(ex, objects: list[str]) -> str:
         reg = w.registered_shifts.get(h)
         if reg is not None and np.any(reg != 0.0):  # hand_registered_after_release: the reference's shift
             line += f" reg {np.round(reg, 3)}"
+        hand_body = int(m.site_bodyid[w.site_id[h]])
+        line += "".join(f" on {name}" for name in _touching(m, d, hand_body))
         parts.append(line)
     com, pel = d.subtree_com[w.pelvis], d.xpos[w.pelvis]
     parts.append(f"com err {np.round(com - lerp(w.refs.com), 3)} pelvis err {np.round(pel - lerp(w.refs.base_p), 3)}")

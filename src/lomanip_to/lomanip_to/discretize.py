@@ -122,12 +122,19 @@ def carried_points(o: SceneObject, r: float = CARRIED_POINT_RADIUS) -> np.ndarra
     return np.array(out).reshape(-1, 4)
 
 
-def self_pairs(model: G1Model) -> tuple:
+def self_pairs(model: G1Model, hand_body: bool = False) -> tuple:
+    """Sphere index pairs of the self-collision rows; ``hand_body``: Options.hand_body_self_pairs."""
     names = [s.name for s in model.spheres]
     idx = {n: i for i, n in enumerate(names)}
     pairs = []
     for s in ("left", "right"):
         pairs.append((idx[f"{s}_hand"], idx["torso_0"]))
+        if hand_body:
+            o = "right" if s == "left" else "left"
+            for arm in (f"{s}_hand", f"{s}_hand_tip", f"{s}_wrist"):
+                for other in (f"{o}_hip_pitch", f"{o}_hip_roll", f"{o}_hip_front", f"{o}_thigh_0",
+                              "torso_low_0", "torso_low_1", f"{s}_hip_front", f"{s}_shin_0"):
+                    pairs.append((idx[arm], idx[other]))
         for arm in (f"{s}_hand", f"{s}_hand_tip", f"{s}_wrist"):
             for other in ("pelvis", f"{s}_hip_pitch", f"{s}_hip_roll", f"{s}_thigh_0", f"{s}_thigh_1"):
                 pairs.append((idx[arm], idx[other]))
@@ -225,7 +232,7 @@ class ProblemData:
             self.pairs = list(pairs)
         self.env_pairs = list(env_pairs) if env_pairs is not None else self._choose_env_pairs()
         self.structure = Structure(len(self.moving), tuple(s for s, _ in self.pairs),
-                                   self_pairs(model) if opt.self_collision else (),
+                                   self_pairs(model, opt.hand_body_self_pairs) if opt.self_collision else (),
                                    tuple(opt.inertial_torque_groups), opt.interval_momentum_tolerance > 0,
                                    opt.upper_body_acceleration_limit > 0, len(self.env_pairs),
                                    bool(opt.load_in_double_support_margin), float(opt.cop_margin_front),

@@ -328,6 +328,13 @@ class Options:
                                "right_thigh", "pelvis", "torso", "head", "left_hand", "right_hand",
                                "left_forearm", "right_forearm", "left_upper_arm", "right_upper_arm")
     self_collision: bool = True
+    #: more self-collision pairs for the hands (:func:`lomanip_to.discretize.self_pairs`): each hand
+    #: and wrist against the other side's hip and thigh, the torso's lower front and its own shin.
+    #: Why: S1's 2.5 kg / 0.6 rad plan parked the left hand on the body with no pair for it, 14 mm into
+    #: the right hip's sphere at 13.0 s and the wrist 15 mm into the left shin; executed, the hand
+    #: jammed between the torso and the right hip in the step onto the box and the robot fell at
+    #: 14.0 s (docs/execution.md, session 44). Off by default: it changes every plan
+    hand_body_self_pairs: bool = False
     #: the forearm spheres (elbow to wrist) stay out of an object while that side's hand touches it
     #: (False: off with the hand's own spheres, as before). Why: with them off, S1's and S2's plans
     #: carried the box with the wrist links 3-8 cm inside it on MuJoCo's meshes; executed, the elbows
