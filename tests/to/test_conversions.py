@@ -170,7 +170,7 @@ def test_options_round_trip_the_rows_on_the_motion_between_knots(model, name, va
 
 
 @pytest.mark.parametrize("name", ["lift_with_previous_segment", "segment_moving_objects", "load_in_double_support_margin",
-                                  "resting_object_dynamics"])
+                                  "resting_object_dynamics", "forearm_clear_of_held_object"])
 def test_options_round_trip_the_switches(model, name):
     from lomanip_msgs.msg import TrajectoryOptions
     from lomanip_to.problem import Options
@@ -198,3 +198,17 @@ def test_options_round_trip_the_front_cop_margin(model):
     with pytest.raises(ProblemError) as e:
         validate_problem(prob, model)
     assert e.value.code == INVALID_REQUEST
+
+
+@pytest.mark.parametrize("name, value", [("hand_standoff", 0.04), ("final_warm_start_max_violation", 1.0),
+                                         ("cop_margin_front", 0.04)])
+def test_options_round_trip_the_hand_and_warm_start_values(model, name, value):
+    """The message's defaults are the TO's; S1's task file values survive the trip."""
+    from lomanip_msgs.msg import TrajectoryOptions
+    from lomanip_to.problem import Options
+
+    assert getattr(conv.options_from_msg(TrajectoryOptions()), name) == getattr(Options(), name)
+    prob = load_problem("case_one_step", model=model)
+    prob.options = prob.options.replaced(**{name: value})
+    req = conv.request_from_problem(prob, model.joint_names)
+    assert getattr(conv.options_from_msg(req.options), name) == value

@@ -182,6 +182,9 @@ def options_from_msg(o: TrajectoryOptions, base: P.Options | None = None) -> P.O
         load_in_double_support_margin=bool(o.load_in_double_support_margin),
         resting_object_dynamics=bool(o.resting_object_dynamics),
         cop_margin_front=float(o.cop_margin_front),
+        hand_standoff=float(o.hand_standoff),
+        forearm_clear_of_held_object=bool(o.forearm_clear_of_held_object),
+        final_warm_start_max_violation=float(o.final_warm_start_max_violation),
         ipopt={**(base.ipopt if base is not None else {}),
                **{str(kv.name): P.parse_option_value(str(kv.value)) for kv in o.solver_options}},
         weights={**(base.weights if base is not None else {}), **{str(w.name): float(w.value) for w in o.weights}})
@@ -392,6 +395,9 @@ def request_from_problem(prob: P.Problem, joint_names):
         load_in_double_support_margin=bool(o.load_in_double_support_margin),
         resting_object_dynamics=bool(o.resting_object_dynamics),
         cop_margin_front=float(o.cop_margin_front),
+        hand_standoff=float(o.hand_standoff),
+        forearm_clear_of_held_object=bool(o.forearm_clear_of_held_object),
+        final_warm_start_max_violation=float(o.final_warm_start_max_violation),
         solver_options=[SolverOption(name=str(k), value=str(v)) for k, v in (o.ipopt or {}).items()],
         weights=[CostWeight(name=str(k), value=float(v)) for k, v in (o.weights or {}).items()])
     if prob.initial_configuration is not None:
