@@ -104,7 +104,7 @@ class Timing:
     # double support holding a lifted object before the carry's first step (0 = the lift is the
     # weight shift). Why: S1's plans stood up from the squat and stepped at once; in that first step
     # they swung the box up to 1.0-1.3 m and rolled the pelvis 0.4-0.8 rad (docs/to.md, session 21)
-    lift_settle: float = 0.4
+    lift_settle: float = 0.6
     # m: the plan's last subtask lifts what it grabs by this much (a placement goal above where the
     # object rests, after ``manipulate``) and holds it to the end; 0 = it ends holding the object where
     # it is. Why: S1's success test needs the basket 10 cm above its shelf (lomanip_sim.task_success)
