@@ -103,7 +103,10 @@ class Timing:
     weight_shift: float = 0.4       # double support before the first step of a subtask (it starts at rest)
     # double support holding a lifted object before the carry's first step (0 = the lift is the
     # weight shift). Why: S1's plans stood up from the squat and stepped at once; in that first step
-    # they swung the box up to 1.0-1.3 m and rolled the pelvis 0.4-0.8 rad (docs/to.md, session 21)
+    # they swung the box up to 1.0-1.3 m and rolled the pelvis 0.4-0.8 rad (docs/to.md, session 21).
+    # 0.6 s (0.4 before session 44): with ``manipulate`` the lift is 1.4 s, the S1 fixture's since
+    # session 42; S1 from prompts with 0.4 s dropped the box in the lift when executed, with 0.6 s it
+    # carried it two steps (docs/planner_s1.md, session 44)
     lift_settle: float = 0.6
     # m: the plan's last subtask lifts what it grabs by this much (a placement goal above where the
     # object rests, after ``manipulate``) and holds it to the end; 0 = it ends holding the object where
