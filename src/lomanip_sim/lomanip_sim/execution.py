@@ -98,6 +98,7 @@ class Execution:
         #: robot bodies whose contacts the plan never has (all but the feet and the hands)
         self._unplanned_bodies = {b for b in range(m.nbody) if m.body_rootid[b] == root and b not in planned}
         self._max_unplanned = (0.0, "")
+        self._contacts_due = False
         self._log_every = max(1, int(round(1.0 / (self.opt.log_rate * sim.timestep))))
         self._steps = 0
         self._e2_base = self._e2_joint = 0.0
@@ -115,6 +116,9 @@ class Execution:
 
     def observe(self, data: mujoco.MjData) -> None:
         self.wbc.observe(data)
+        if self._contacts_due:  # (after mj_step2: the contact list and its forces are of one step)
+            self._contacts_due = False
+            self._unplanned_contacts(data)
 
     def compute(self, data: mujoco.MjData) -> np.ndarray:
         now = time.perf_counter()
@@ -219,7 +223,10 @@ class Execution:
         lg.joint_rms.append(st.joint_error_rms)
         lg.joint_max.append(st.joint_error_max)
         lg.qpos.append(data.qpos.copy())
-        self._unplanned_contacts(data)
+        # measured after this step's mj_step2 (observe): here, after mj_step1, the contact list is
+        # new but efc_force still holds the last step's constraint forces, so mj_contactForce read
+        # other constraints' rows (the "unplanned contacts" of 7988 N and 11984 N before session 44)
+        self._contacts_due = True
         meas = self.wbc.measured_forces  # of the last completed step (read after its mj_step2)
         i, s = tr.index_at(st.t_ref)
         for limb in LIMBS:
