@@ -70,14 +70,19 @@ def cases(args) -> list[tuple[str, str, dict, Path | None]]:
     """(case label, fixture problem name, overrides, saved result path or None to solve here)."""
     out = [(c, c, {}, None) for c in args.cases] + [(p, p, {}, None) for p in args.problems]
     bench_to = ROOT / args.bench_to
-    rows = {}
-    summary = bench_to / "summary.json"
-    if summary.is_file():  # tools/bench_to.py: rows with case, variant and the grid overrides
-        rows = {f"{r['case']}_{r['variant']}": r for r in json.loads(summary.read_text()).get("rows", [])}
+    overrides = saved_overrides(bench_to)
     for npz in sorted(bench_to.glob("*.npz")) if bench_to.is_dir() else []:
-        row = rows.get(npz.stem, {})
-        out.append((npz.stem, _problem_of(npz.stem), dict(row.get("overrides") or {}), npz))
+        out.append((npz.stem, _problem_of(npz.stem), overrides.get(npz.stem, {}), npz))
     return out
+
+
+def saved_overrides(folder: Path) -> dict[str, dict]:
+    """Saved result stem (``<case>_<variant>``) -> the grid overrides it was solved at, from the
+    folder's summary.json (tools/bench_to.py, tools/bench_plan.py's <out>/to); {} without one."""
+    summary = folder / "summary.json"
+    rows = json.loads(summary.read_text()) if summary.is_file() else {}
+    rows = rows.get("rows", []) if isinstance(rows, dict) else []
+    return {f"{r['case']}_{r['variant']}": dict(r.get("overrides") or {}) for r in rows}
 
 
 def parse_worlds(specs: list[str]) -> list[dict]:

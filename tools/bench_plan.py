@@ -53,22 +53,11 @@ def variant_options(task: dict, variant: str, max_iterations: int | None):
     return opt if max_iterations is None else opt.replaced(max_iterations=max_iterations)
 
 
-def _progress(label: str):
-    """A line per TO stage and every 50 iterations, so a long solve shows where it is."""
-    last = {"stage": None}
-
-    def report(pr):
-        if pr.stage != last["stage"] or pr.iteration % 50 == 0:
-            last["stage"] = pr.stage
-            print(f"    {label}: {pr.stage or 'solve'} iteration {pr.iteration}, violation "
-                  f"{pr.constraint_violation:.1e}, {pr.elapsed:.0f} s", flush=True)
-    return report
-
-
 def run_case(task: dict, overrides: dict, solve: bool, variants: list[str], max_iterations: int | None,
              out: Path | None = None) -> dict:
     from dataclasses import replace
 
+    from bench_to import progress_printer   # tools/ is on sys.path when run as a script
     from lomanip_planner import offline
     from lomanip_to import solver
     from lomanip_to.problem import PlacementGoal
@@ -99,7 +88,7 @@ def run_case(task: dict, overrides: dict, solve: bool, variants: list[str], max_
         for v in variants:
             prob = replace(plan.problem, options=variant_options(task, v, max_iterations))
             t0 = time.perf_counter()
-            res = solver.solve(prob, progress=_progress(f"{task['scenario']} {v}"))
+            res = solver.solve(prob, progress=progress_printer(f"    {task['scenario']} {v}"))
             s = res.stats
             if out is not None:  # tools/bench_exec.py --bench-to <out>/to executes it
                 name = f"{task['scenario']}_prompts_" + "_".join(f"{k}{overrides[k]:g}" for k in sorted(overrides)

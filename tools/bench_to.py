@@ -68,6 +68,18 @@ def grid(scenario: str) -> list[dict]:
     return [dict(zip(keys, combo)) for combo in itertools.product(*(g[k] for k in keys))]
 
 
+def progress_printer(label: str):
+    """TO progress hook printing a line per stage and every 50 iterations, so a long solve shows where it is."""
+    last = {"stage": None}
+
+    def report(pr):
+        if pr.stage != last["stage"] or pr.iteration % 50 == 0:
+            last["stage"] = pr.stage
+            print(f"{label}: {pr.stage or 'solve'} iteration {pr.iteration}, violation "
+                  f"{pr.constraint_violation:.1e}, {pr.elapsed:.0f} s", flush=True)
+    return report
+
+
 def case_name(scenario: str, over: dict) -> str:
     return scenario + "".join(f"_{k.replace('box_', '')}{v:g}" for k, v in over.items())
 
@@ -104,15 +116,7 @@ def run_case(model, scenario: str, over: dict, variant: str, out: Path, time_lim
     t0 = time.perf_counter()
     prob = load_problem(scenario, overrides=over, model=model, options=opts)
     load_s = time.perf_counter() - t0
-    last = {"stage": None}
-
-    def progress(pr):  # a line per stage and every 50 iterations, so a long solve shows where it is
-        if pr.stage != last["stage"] or pr.iteration % 50 == 0:
-            last["stage"] = pr.stage
-            print(f"  {name} {variant}: {pr.stage or 'solve'} iteration {pr.iteration}, violation "
-                  f"{pr.constraint_violation:.1e}, {pr.elapsed:.0f} s", flush=True)
-
-    res = solver.solve(prob, model, progress=progress)
+    res = solver.solve(prob, model, progress=progress_printer(f"  {name} {variant}"))
     s = res.stats
     res.save(out / f"{name}_{variant}.npz")
     plot_penetration(out / f"{name}_{variant}_penetration.png",

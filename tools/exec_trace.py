@@ -101,20 +101,6 @@ def trace_line(ex, objects: list[str]) -> str:
     return " | ".join(parts)
 
 
-def _grid_overrides(npz: Path) -> dict:
-    """The grid point (``box_mass``, ``box_yaw``, ...) a tools/bench_to.py result was solved at, from
-    the summary.json beside it ({} if there is none): a plan traced in its nominal world would be
-    executed in the wrong scene."""
-    import json
-
-    summary = npz.parent / "summary.json"
-    if not summary.is_file():
-        return {}
-    rows = json.loads(summary.read_text())
-    rows = rows.get("rows", []) if isinstance(rows, dict) else []
-    return next((dict(r.get("overrides") or {}) for r in rows if f"{r.get('case')}_{r.get('variant')}" == npz.stem), {})
-
-
 def _in_task_world(plan: Path, problem: Path, scenario: str, overrides: dict):
     """(trajectory, simulation) of a saved plan and its pickled problem, in ``scenario``'s world."""
     import pickle
@@ -178,7 +164,8 @@ def main() -> int:
         traj, sim = _in_task_world(args.npz, args.npz.with_suffix(".problem.pkl"), task["scenario"], overrides)
     else:
         problem = args.problem or bench_exec._problem_of(args.npz.stem)
-        overrides = _grid_overrides(args.npz)
+        # the grid point it was solved at (a plan traced in the nominal world runs in the wrong scene)
+        overrides = bench_exec.saved_overrides(args.npz.parent).get(args.npz.stem, {})
         prob = fixtures.load_problem(problem, overrides)
         res = TOResult.load(args.npz)
         if res.t is None:

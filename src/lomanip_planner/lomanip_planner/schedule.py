@@ -238,16 +238,19 @@ class _Builder:
 
     def _obstacles(self, targets: dict[str, tuple[np.ndarray, str]]) -> list[Footprint]:
         """Footprints of the objects the robot neither holds nor stands or steps on."""
-        held = {c.object_id for c in self.held.values()} | self.carried
+        held = self._held_objects()
         onto = {targets[f][1] for f in targets} | {self.stance.surface(f) for f in FEET}
         return [fp for oid, fp in self.footprints.items() if oid not in held and oid not in onto]
+
+    def _held_objects(self) -> set[str]:
+        return {c.object_id for c in self.held.values()} | self.carried
 
     def _foothold_obstacles(self, foot: str) -> list[Footprint]:
         """Footprints an intermediate foothold of ``foot`` keeps clear of: every object the hands do
         not hold but the surface the foot stands on, the one it is about to step onto included (the
         route may end on S1's box; a floor step halfway there put the right sole's toe 12 cm under
         the box, and the generated S1's TO stopped at its cap on that foothold, session 44)."""
-        held = {c.object_id for c in self.held.values()} | self.carried
+        held = self._held_objects()
         return [fp for oid, fp in self.footprints.items() if oid not in held and oid != self.stance.surface(foot)]
 
     def _route(self, targets: dict[str, tuple[np.ndarray, str]]) -> np.ndarray:
