@@ -131,3 +131,14 @@ def test_noslip_pass_is_a_scenario_parameter():
     assert build_world(load_scenario("s2_trolley", {"noslip_iterations": 0})).model.opt.noslip_iterations == 0
     with pytest.raises(ScenarioError, match="noslip_iterations"):
         load_scenario("s1_basket", {"noslip_iterations": -1})
+
+
+def test_impratio_is_a_scenario_parameter():
+    """MuJoCo's friction impedance ratio: 1 by default, settable, and a non-positive one refused."""
+    from lomanip_sim.scenario import ScenarioError, load_scenario
+    from lomanip_sim.world import build_world
+
+    assert build_world(load_scenario("s1_basket")).model.opt.impratio == 1.0
+    assert build_world(load_scenario("s2_trolley", {"impratio": 10.0})).model.opt.impratio == 10.0
+    with pytest.raises(ScenarioError, match="impratio"):
+        load_scenario("s1_basket", {"impratio": 0.0})

@@ -43,6 +43,12 @@ class CommonParams:
     #: not 5.1), S2's nominal plan still executes to task success, and so do three push plans of
     #: tools/bench_push.py; with 30 S2 nominal fell (docs/execution.md, sessions 37-38)
     noslip_iterations: int = 10
+    #: MuJoCo's ratio of frictional to normal constraint impedance (its default 1). Higher makes
+    #: friction harder. Why a parameter: with 1 a single-stance sole loaded on its two heel spheres
+    #: spins about the leg's hip-yaw axis at up to 1.4 rad/s while its contacts are inside the
+    #: friction cone (noslip does not change it); with 10 at 0.3 rad/s. The default stays 1: S1's and
+    #: S2's executions were measured with it (docs/execution.md, session 45)
+    impratio: float = 1.0
     floor_friction: float = 1.0
     robot_position: Vec2 = (0.0, 0.0)
     robot_yaw: float = 0.0
@@ -125,7 +131,7 @@ SCENARIOS: dict[str, type[CommonParams]] = {S1BasketParams.name: S1BasketParams,
 
 # Keys that must be > 0 (masses, sizes, ...) and >= 0 (frictions, offsets).
 _POSITIVE_SUFFIXES = ("_mass", "_size", "timestep", "camera_width", "camera_height", "camera_fovy", "_radius",
-                      "_wall", "_handle_height")  # fmt: skip
+                      "_wall", "_handle_height", "impratio")  # fmt: skip
 _NON_NEGATIVE_SUFFIXES = ("_friction", "_setback", "_trail", "_resistance", "_iterations")
 
 

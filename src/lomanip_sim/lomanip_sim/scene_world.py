@@ -103,6 +103,7 @@ def build_scene_world(objects: list[SceneObjectSpec], robot_qpos: np.ndarray | N
     spec.modelname = "lomanip_plan_scene"
     spec.option.timestep = float(params.timestep)
     spec.option.noslip_iterations = int(params.noslip_iterations)  # see CommonParams
+    spec.option.impratio = float(params.impratio)
     for key in list(spec.keys):
         spec.delete(key)
     W._convert_actuators_to_motors(spec)

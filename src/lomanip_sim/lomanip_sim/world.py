@@ -432,6 +432,7 @@ def build_spec(params: ScenarioParams) -> tuple[mujoco.MjSpec, list[tuple[str, s
     spec.modelname = f"lomanip_{params.name}"
     spec.option.timestep = float(params.timestep)
     spec.option.noslip_iterations = int(params.noslip_iterations)  # see CommonParams
+    spec.option.impratio = float(params.impratio)
     for key in list(spec.keys):
         spec.delete(key)
     _convert_actuators_to_motors(spec)
