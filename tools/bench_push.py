@@ -57,7 +57,9 @@ DEFAULT_CASES = ["base", "near", "far_left", "right"]
 #: "farther" move the trolley 2 cm along its heading, so the hands meet the handle early / late
 PERTURBATIONS = {"nominal": {}, "light": {"trolley_mass": 6.0}, "heavy": {"trolley_mass": 10.0},
                  "free_wheels": {"wheel_rolling_resistance": 0.75}, "stiff_wheels": {"wheel_rolling_resistance": 3.0},
-                 "closer": {"trolley_shift": -0.02}, "farther": {"trolley_shift": 0.02}}
+                 "closer": {"trolley_shift": -0.02}, "farther": {"trolley_shift": 0.02},
+                 # not a model error: MuJoCo's harder friction (docs/execution.md, session 45)
+                 "impratio10": {"impratio": 10.0}}
 
 
 def task_and_overrides(position) -> tuple[dict, dict]:
