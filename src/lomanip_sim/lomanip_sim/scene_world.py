@@ -101,9 +101,7 @@ def build_scene_world(objects: list[SceneObjectSpec], robot_qpos: np.ndarray | N
     except Exception as e:  # mujoco raises plain ValueError on parse problems
         raise W.WorldBuildError(f"cannot load {g1_mjcf_path()}: {e}") from e
     spec.modelname = "lomanip_plan_scene"
-    spec.option.timestep = float(params.timestep)
-    spec.option.noslip_iterations = int(params.noslip_iterations)  # see CommonParams
-    spec.option.impratio = float(params.impratio)
+    W.set_physics_options(spec, params)
     for key in list(spec.keys):
         spec.delete(key)
     W._convert_actuators_to_motors(spec)

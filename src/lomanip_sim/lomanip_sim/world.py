@@ -36,7 +36,7 @@ from .robot_model import (
     HAND_SITES,
     g1_mjcf_path,
 )
-from .scenario import S1BasketParams, S2TrolleyParams, ScenarioParams
+from .scenario import CommonParams, S1BasketParams, S2TrolleyParams, ScenarioParams
 
 SCENE_CAMERA = "scene_camera"
 FLOOR_GEOM = "floor"
@@ -423,6 +423,13 @@ def _object_info(model, data, oid: str, cls: str) -> ObjectInfo:
 # ---------------------------------------------------------------------------------------------
 
 
+def set_physics_options(spec: mujoco.MjSpec, params: CommonParams) -> None:
+    """MuJoCo's solver options from the scenario (see CommonParams), for every world built here."""
+    spec.option.timestep = float(params.timestep)
+    spec.option.noslip_iterations = int(params.noslip_iterations)
+    spec.option.impratio = float(params.impratio)
+
+
 def build_spec(params: ScenarioParams) -> tuple[mujoco.MjSpec, list[tuple[str, str]]]:
     """The MjSpec of the world (G1 + scene) before compilation; also returns [(object id, class)]."""
     try:
@@ -430,9 +437,7 @@ def build_spec(params: ScenarioParams) -> tuple[mujoco.MjSpec, list[tuple[str, s
     except Exception as e:  # mujoco raises plain ValueError on parse problems
         raise WorldBuildError(f"cannot load {g1_mjcf_path()}: {e}") from e
     spec.modelname = f"lomanip_{params.name}"
-    spec.option.timestep = float(params.timestep)
-    spec.option.noslip_iterations = int(params.noslip_iterations)  # see CommonParams
-    spec.option.impratio = float(params.impratio)
+    set_physics_options(spec, params)
     for key in list(spec.keys):
         spec.delete(key)
     _convert_actuators_to_motors(spec)
