@@ -19,10 +19,12 @@ a video (MP4, or GIF without an MP4 encoder), PNG frames, tracking.png, forces.p
     .venv/bin/python tools/bench_exec.py --cases --bench-to runs/bench_to \
         --world box_mass=2.0 --world box_mass=3.0 --world trolley_mass=6.0,wheel_rolling_resistance=3.0
 
-``--world`` executes every saved S1/S2 plan once more in a world with model errors: scenario
-overrides applied to the simulated world only, the plan unchanged (it was made for the world its
-benchmark solved). Each such run is labelled ``<case>@<overrides>``; a world key the scenario does not
-have is refused with a one-line error before anything runs.
+``--world`` executes every plan once more in a world with model errors: scenario overrides applied
+to the simulated world only, the plan unchanged (it was made for the world its benchmark solved; a
+case solved here is solved once). The small cases have no scenario: they take the keys every
+scenario has (MuJoCo's options, e.g. ``--world friction_cone=elliptic,impratio=10``). Each such run
+is labelled ``<case>@<overrides>``; a world key the scenario does not have is refused with a one-line
+error before anything runs.
 """
 from __future__ import annotations
 
@@ -42,8 +44,9 @@ for _p in ("src/lomanip_sim", "src/lomanip_to"):
 FIXTURES = ("case_stand", "case_one_step", "case_lift_box")
 
 
-def plan_world(problem: str, overrides: dict, prob, traj_start):
-    """(Simulation, scenario name) for a plan: the fixture's lomanip_sim scenario, or its own scene."""
+def plan_world(problem: str, overrides: dict, prob, traj_start, world: dict | None = None):
+    """(Simulation, scenario name) for a plan: the fixture's lomanip_sim scenario, or its own scene;
+    ``world``: scenario keys changed in the simulated world only (--world)."""
     from lomanip_sim import scene_world
     from lomanip_sim.scenario import load_scenario
     from lomanip_sim.simulator import Simulation
@@ -52,9 +55,10 @@ def plan_world(problem: str, overrides: dict, prob, traj_start):
     raw = yaml.safe_load(Path(fixtures.config_path(problem)).read_text())
     if raw.get("scenario"):
         _params, sim_over = fixtures._scenario_params(raw, overrides)
-        return Simulation(load_scenario(raw["scenario"], sim_over)), raw["scenario"]
-    world = scene_world.build_scene_world(scene_world.objects_from_to_problem(prob), robot_qpos=traj_start)
-    return Simulation(world), problem
+        return Simulation(load_scenario(raw["scenario"], {**sim_over, **(world or {})})), raw["scenario"]
+    built = scene_world.build_scene_world(scene_world.objects_from_to_problem(prob), robot_qpos=traj_start,
+                                          params=scene_world.scene_params(world))
+    return Simulation(built), problem
 
 
 def _problem_of(stem: str) -> str:
@@ -101,19 +105,19 @@ def parse_worlds(specs: list[str]) -> list[dict]:
 
 
 def check_worlds(worlds: list[dict], problems: set[str]) -> None:
-    """Every ``--world`` key must be a parameter of each scenario it will change (ValueError if not)."""
+    """Every ``--world`` key must be a parameter of each scenario it will change (ValueError if not);
+    a fixture without a lomanip_sim scenario (the small cases) takes the physics keys every scenario has."""
     from lomanip_sim.scenario import load_scenario
+    from lomanip_sim.scene_world import scene_params
     from lomanip_to import fixtures
 
     for problem in sorted(problems):
         scenario = yaml.safe_load(Path(fixtures.config_path(problem)).read_text()).get("scenario")
         for world in worlds:
-            if not scenario:
-                raise ValueError(f"--world {world}: {problem} has no lomanip_sim scenario to change")
             try:
-                load_scenario(scenario, world)
+                load_scenario(scenario, world) if scenario else scene_params(world)
             except ValueError as e:  # lomanip_sim.scenario.ScenarioError: unknown key, bad value
-                raise ValueError(f"--world {world} for {scenario}: {e}") from None
+                raise ValueError(f"--world {world} for {scenario or problem}: {e}") from None
 
 
 def world_label(world: dict) -> str:
@@ -121,7 +125,8 @@ def world_label(world: dict) -> str:
 
 
 def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_root: Path, video: bool,
-             gains=None, world: dict | None = None) -> dict:
+             gains=None, world: dict | None = None, solved: dict | None = None) -> dict:
+    """Execute one plan (saved, or solved here; ``solved`` caches the latter by fixture for --world)."""
     from lomanip_sim.execution import Execution
     from lomanip_sim.media import save_run
     from lomanip_sim.trajectory import TrajectoryError, from_to_result
@@ -130,15 +135,18 @@ def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_
 
     prob = fixtures.load_problem(problem, overrides)
     t0 = time.perf_counter()
-    res = TOResult.load(saved) if saved is not None else solver.solve(prob)
-    solve_s = time.perf_counter() - t0
+    cached = solved.get(problem) if solved is not None and saved is None else None
+    res = TOResult.load(saved) if saved is not None else cached[0] if cached else solver.solve(prob)
+    solve_s = cached[1] if cached else time.perf_counter() - t0
+    if solved is not None and saved is None:
+        solved[problem] = (res, solve_s)
     if res.t is None:
         res.densify()
     row = {"case": label, "problem": problem, "overrides": overrides, "world": dict(world or {}),
            "to_converged": bool(res.success), "to_time_s": round(solve_s, 1) if saved is None else None}
     try:
         traj = from_to_result(res, prob.phases)
-        sim, scenario = plan_world(problem, {**overrides, **(world or {})}, prob, traj.qpos(0))
+        sim, scenario = plan_world(problem, overrides, prob, traj.qpos(0), world)
         traj.scenario = scenario
         ex = Execution(sim, traj, gains=gains)
     except TrajectoryError as e:
@@ -169,8 +177,8 @@ def main() -> int:
     ap.add_argument("--no-video", action="store_true")
     ap.add_argument("--gains", default="{}", help='WbcGains overrides as JSON, e.g. \'{"grasp_squeeze_scale": 2.0}\'')
     ap.add_argument("--world", action="append", default=[], metavar="KEY=VALUE[,KEY=VALUE]",
-                    help="also execute every saved S1/S2 plan in a world with these scenario overrides "
-                         "(model errors, the plan unchanged; repeatable), e.g. --world box_mass=3.0")
+                    help="also execute every plan in a world with these scenario overrides (model errors or "
+                         "MuJoCo's options, the plan unchanged; repeatable), e.g. --world box_mass=3.0")
     args = ap.parse_args()
     try:
         gains = gains_from_json(args.gains)
@@ -181,12 +189,13 @@ def main() -> int:
     todo = cases(args)
     if worlds:
         try:
-            check_worlds(worlds, {problem for _l, problem, _o, saved in todo if saved is not None})
+            check_worlds(worlds, {problem for _l, problem, _o, _saved in todo})
         except ValueError as e:
             print(f"bench_exec: {e}", file=sys.stderr)
             return 2
     runs = [(c, None) for c in todo]
-    runs += [(c, w) for c in todo if c[3] is not None for w in worlds]
+    runs += [(c, w) for c in todo for w in worlds]
+    solved: dict = {}  # fixture -> (result, solve time): a case solved here is executed in every world
     out_root = ROOT / args.out
     out_root.mkdir(parents=True, exist_ok=True)
     rows = []
@@ -197,7 +206,7 @@ def main() -> int:
     for (label, problem, overrides, saved), world in runs:
         if world is not None:
             label = f"{label}@{world_label(world)}"
-        row = run_case(label, problem, overrides, saved, out_root, not args.no_video, gains, world)
+        row = run_case(label, problem, overrides, saved, out_root, not args.no_video, gains, world, solved)
         rows.append(row)
         if "error" in row:
             print(f"{label:<{width}}{'yes' if row['to_converged'] else 'no':>5}  refused: {row['error']}")

@@ -58,8 +58,9 @@ DEFAULT_CASES = ["base", "near", "far_left", "right"]
 PERTURBATIONS = {"nominal": {}, "light": {"trolley_mass": 6.0}, "heavy": {"trolley_mass": 10.0},
                  "free_wheels": {"wheel_rolling_resistance": 0.75}, "stiff_wheels": {"wheel_rolling_resistance": 3.0},
                  "closer": {"trolley_shift": -0.02}, "farther": {"trolley_shift": 0.02},
-                 # not a model error: MuJoCo's harder friction (docs/execution.md, session 45)
-                 "impratio10": {"impratio": 10.0}}
+                 # not a model error: MuJoCo's own defaults, the worlds before session 46 (a pyramidal
+                 # cone, impratio 1: soft friction that lets a loaded sole creep; docs/execution.md)
+                 "pyramidal": {"friction_cone": "pyramidal", "impratio": 1.0}}
 
 
 def task_and_overrides(position) -> tuple[dict, dict]:

@@ -128,6 +128,8 @@ def main() -> int:
     ap.add_argument("--stop", type=float, default=float("inf"))
     ap.add_argument("--every", type=float, default=0.1, help="s between lines")
     ap.add_argument("--gains", default="{}", help="WbcGains overrides as JSON")
+    ap.add_argument("--world", default=None, help="a fixture's plan in a changed world: scenario overrides "
+                    "KEY=VALUE[,KEY=VALUE] as tools/bench_exec.py --world (the plan unchanged)")
     args = ap.parse_args()
 
     import bench_exec
@@ -142,6 +144,7 @@ def main() -> int:
         return 2
     try:
         gains = bench_exec.gains_from_json(args.gains)
+        world = bench_exec.parse_worlds([args.world])[0] if args.world else {}
     except ValueError as e:
         print(f"exec_trace: {e}", file=sys.stderr)
         return 2
@@ -171,9 +174,9 @@ def main() -> int:
         if res.t is None:
             res.densify()
         traj = from_to_result(res, prob.phases)
-        sim, traj.scenario = bench_exec.plan_world(problem, overrides, prob, traj.qpos(0))
-        if overrides:
-            print(f"world: {problem} with {overrides}")
+        sim, traj.scenario = bench_exec.plan_world(problem, overrides, prob, traj.qpos(0), world)
+        if overrides or world:
+            print(f"world: {problem} with {overrides}, simulated with {world}")
     ex = Execution(sim, traj, gains=gains)
     movable = [o for o in traj.objects if o in sim.world.objects and sim.world.objects[o].movable]
     ex.start()

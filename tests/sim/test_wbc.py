@@ -153,9 +153,10 @@ def test_references_and_helpers():
 def test_foot_friction_cone_is_inside_mujocos():
     """The QP's sole friction cone lies inside the one MuJoCo applies to the sole spheres.
 
-    MuJoCo: condim 3, pyramidal cone, friction of the higher-priority geom (the G1's sole spheres):
-    per point |f_t1| + |f_t2| <= mu_sim f_n along its contact frame's tangents (world x, y on a
-    level floor). A QP that asks for more makes the stance sole slide or spin (S1, second step).
+    MuJoCo: condim 3, the elliptic cone of the scenarios (|f_t| <= mu_sim f_n), friction of the
+    higher-priority geom (the G1's sole spheres); the QP's diamond (|f_t1| + |f_t2| <= mu_foot f_n,
+    MuJoCo's pyramidal cone, kept for worlds that choose it) lies inside either. A QP that asks for
+    more makes the stance sole slide or spin (S1, second step).
     """
     sim, tr = simulation("case_stand")
     wbc = WholeBodyController(sim.world, tr)
@@ -166,7 +167,7 @@ def test_foot_friction_cone_is_inside_mujocos():
             a, b = (gid, floor) if m.geom_priority[gid] >= m.geom_priority[floor] else (floor, gid)
             mu_sim = m.geom_friction[a][0] if m.geom_priority[a] > m.geom_priority[b] else max(m.geom_friction[a][0], m.geom_friction[b][0])
             assert m.geom_condim[gid] == 3 and wbc.g.mu_foot <= mu_sim
-    assert m.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
+    assert m.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
     rows = wbc._pyramid(np.array([0.0, 0.0, 1.0]), wbc.g.mu_foot)
     mu = wbc.g.mu_foot
     inside = [np.array([mu, 0, 1]), np.array([0, -mu, 1]), np.array([mu / 2, mu / 2, 1]) * 0.999]
@@ -207,8 +208,9 @@ def test_hand_force_stops_when_the_object_is_lost():
     assert np.linalg.norm(planned) > 1.0
     # the QP keeps the hands' sum and tilts their split by the grasp moment rows (w_grasp_moment),
     # which turn the box towards its planned yaw: 3.6 N of 18.9 here since the hand offsets read
-    # the plan's contact points (session 41; 0.05 N before)
-    assert np.linalg.norm(wbc.last_forces["left_hand"] - planned) < 0.25 * np.linalg.norm(planned)
+    # the plan's contact points (session 41; 0.05 N before), 4.9 N of 18.5 in the elliptic-cone
+    # world (session 46)
+    assert np.linalg.norm(wbc.last_forces["left_hand"] - planned) < 0.35 * np.linalg.norm(planned)
     box = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "box")
     for g in range(sim.model.ngeom):  # the box stops colliding: for the hands it is gone
         if sim.model.geom_bodyid[g] == box:
@@ -888,7 +890,8 @@ def test_grasp_moment_rows_give_the_carried_box_the_moment_its_orientation_needs
     if weight > 0:
         # N m: measured < 0.005 with the hand offsets as before session 41, 0.05-0.09 since they
         # read the plan's contact points (the hands sit 1.2 cm further out, the box yaws more and
-        # the rows, a weighted task, trade the larger wanted moment against the others)
-        assert max(residuals) < 0.15
+        # the rows, a weighted task, trade the larger wanted moment against the others); 0.16-0.19
+        # in the elliptic-cone world (session 46)
+        assert max(residuals) < 0.25
     else:
-        assert max(residuals) > 0.3  # measured 1.26
+        assert max(residuals) > 0.5  # measured 1.26 (1.27 in the elliptic-cone world)

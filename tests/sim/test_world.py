@@ -133,12 +133,27 @@ def test_noslip_pass_is_a_scenario_parameter():
         load_scenario("s1_basket", {"noslip_iterations": -1})
 
 
-def test_impratio_is_a_scenario_parameter():
-    """MuJoCo's friction impedance ratio: 1 by default, settable, and a non-positive one refused."""
+def test_friction_model_is_a_scenario_parameter():
+    """MuJoCo's friction impedance ratio and cone: 10 and elliptic by default (every world, the small
+    cases' too), settable, and bad values refused with a one-line ScenarioError."""
+    import mujoco
+
     from lomanip_sim.scenario import ScenarioError, load_scenario
+    from lomanip_sim.scene_world import build_scene_world, scene_params
     from lomanip_sim.world import build_world
 
-    assert build_world(load_scenario("s1_basket")).model.opt.impratio == 1.0
-    assert build_world(load_scenario("s2_trolley", {"impratio": 10.0})).model.opt.impratio == 10.0
+    opt = build_world(load_scenario("s1_basket")).model.opt
+    assert (opt.impratio, opt.cone) == (10.0, mujoco.mjtCone.mjCONE_ELLIPTIC)
+    opt = build_scene_world([]).model.opt
+    assert (opt.impratio, opt.cone) == (10.0, mujoco.mjtCone.mjCONE_ELLIPTIC)
+    opt = build_world(load_scenario("s2_trolley", {"impratio": 1.0, "friction_cone": "pyramidal"})).model.opt
+    assert (opt.impratio, opt.cone) == (1.0, mujoco.mjtCone.mjCONE_PYRAMIDAL)
+    assert build_scene_world([], params=scene_params({"friction_cone": "pyramidal"})).model.opt.cone == 0
     with pytest.raises(ScenarioError, match="impratio"):
         load_scenario("s1_basket", {"impratio": 0.0})
+    with pytest.raises(ScenarioError, match="friction_cone must be one of pyramidal, elliptic"):
+        load_scenario("s1_basket", {"friction_cone": "round"})
+    with pytest.raises(ScenarioError, match="friction_cone.*a string"):
+        scene_params({"friction_cone": 1})
+    with pytest.raises(ScenarioError, match="unknown parameter 'box_mass'"):
+        scene_params({"box_mass": 3.0})

@@ -43,12 +43,16 @@ class CommonParams:
     #: not 5.1), S2's nominal plan still executes to task success, and so do three push plans of
     #: tools/bench_push.py; with 30 S2 nominal fell (docs/execution.md, sessions 37-38)
     noslip_iterations: int = 10
-    #: MuJoCo's ratio of frictional to normal constraint impedance (its default 1). Higher makes
-    #: friction harder. Why a parameter: with 1 a single-stance sole loaded on its two heel spheres
-    #: spins about the leg's hip-yaw axis at up to 1.4 rad/s while its contacts are inside the
-    #: friction cone (noslip does not change it); with 10 at 0.3 rad/s. The default stays 1: S1's and
-    #: S2's executions were measured with it (docs/execution.md, session 45)
-    impratio: float = 1.0
+    #: MuJoCo's friction: its ratio of frictional to normal constraint impedance and its cone
+    #: ("pyramidal" or "elliptic"). Why not MuJoCo's defaults (1, pyramidal): with those the friction
+    #: is as soft as the normal contact, and a loaded contact creeps while inside its cone. S1's stance
+    #: sole, loaded on its two heel spheres, spun about the leg's hip-yaw axis at up to 1.2 rad/s (a
+    #: heel sphere sliding at 56 mm/s under 39 % of its friction limit; noslip does not change it);
+    #: impratio 10 cut that to 0.3 rad/s, with the elliptic cone 0.03 (1-5 mm/s), as MuJoCo's
+    #: documentation advises (harder friction, elliptic cones). The small cases and the demo's push
+    #: plans execute as before (docs/execution.md, sessions 45-46)
+    impratio: float = 10.0
+    friction_cone: str = "elliptic"
     floor_friction: float = 1.0
     robot_position: Vec2 = (0.0, 0.0)
     robot_yaw: float = 0.0
@@ -129,6 +133,8 @@ class S2TrolleyParams(CommonParams):
 ScenarioParams = S1BasketParams | S2TrolleyParams
 SCENARIOS: dict[str, type[CommonParams]] = {S1BasketParams.name: S1BasketParams, S2TrolleyParams.name: S2TrolleyParams}
 
+FRICTION_CONES = ("pyramidal", "elliptic")  # CommonParams.friction_cone, in MuJoCo's mjtCone order
+
 # Keys that must be > 0 (masses, sizes, ...) and >= 0 (frictions, offsets).
 _POSITIVE_SUFFIXES = ("_mass", "_size", "timestep", "camera_width", "camera_height", "camera_fovy", "_radius",
                       "_wall", "_handle_height", "impratio")  # fmt: skip
@@ -191,6 +197,10 @@ def _convert(key: str, value: Any, typ: Any, scenario: str) -> Any:
                 return int(value)
             raise bad("an integer")
         return value
+    if typ is str:
+        if not isinstance(value, str):
+            raise bad("a string")
+        return value
     if typing.get_origin(typ) is tuple:
         n = len(typing.get_args(typ))
         if not isinstance(value, (list, tuple)) or len(value) != n:
@@ -218,6 +228,9 @@ def _build(cls: type[CommonParams], values: Mapping[str, Any], source: str) -> C
             raise ScenarioError(f"scenario {cls.name}: parameter {key!r} must be >= 0, got {value!r}")
         kwargs[key] = v
     params = cls(**kwargs)
+    if params.friction_cone not in FRICTION_CONES:
+        raise ScenarioError(f"scenario {cls.name}: friction_cone must be one of {', '.join(FRICTION_CONES)}, "
+                            f"got {params.friction_cone!r}")
     if params.camera_fovy >= 180.0:
         raise ScenarioError(f"scenario {cls.name}: camera_fovy must be < 180 deg, got {params.camera_fovy}")
     return params

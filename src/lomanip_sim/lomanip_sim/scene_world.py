@@ -54,6 +54,11 @@ class FixtureSceneParams(CommonParams):
     camera_target: tuple = (0.4, 0.0, 0.6)
 
 
+def scene_params(overrides: dict | None = None) -> FixtureSceneParams:
+    """FixtureSceneParams with ``overrides`` (physics, camera) checked as a scenario's are (ScenarioError)."""
+    return FixtureSceneParams().replace(**(overrides or {}))
+
+
 def objects_from_to_problem(prob) -> list[SceneObjectSpec]:
     """lomanip_to Problem.objects (duck typed: id, object_class, movable, position, quat_xyzw, mass,
     primitives with kind/size/position/yaw) -> SceneObjectSpec list."""

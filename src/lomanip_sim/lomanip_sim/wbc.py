@@ -146,7 +146,8 @@ class WbcGains:
     # per sphere |f_t1| + |f_t2| <= 0.6 f_n (a "diamond"). The QP used a square pyramid with
     # mu 0.7 (up to 0.99 f_n diagonally), so it could ask a stance sole for more shear and yaw
     # moment than the floor gives: in S1 the stance sole spun 0.4 rad at the second step and the
-    # other one slid 10-16 cm in the squat. Now the same diamond, with 0.5 for margin.
+    # other one slid 10-16 cm in the squat. Now the same diamond, with 0.5 for margin; the scenarios'
+    # elliptic cone (session 46, |f_t| <= 0.6 f_n) contains it as well.
     mu_foot: float = 0.5
     diamond_cone: bool = True  # False: the old square pyramid |f_t1|, |f_t2| <= mu f_n
     f_max: float = 1500.0  # N per point

@@ -36,7 +36,7 @@ from .robot_model import (
     HAND_SITES,
     g1_mjcf_path,
 )
-from .scenario import CommonParams, S1BasketParams, S2TrolleyParams, ScenarioParams
+from .scenario import FRICTION_CONES, CommonParams, S1BasketParams, S2TrolleyParams, ScenarioParams
 
 SCENE_CAMERA = "scene_camera"
 FLOOR_GEOM = "floor"
@@ -428,6 +428,7 @@ def set_physics_options(spec: mujoco.MjSpec, params: CommonParams) -> None:
     spec.option.timestep = float(params.timestep)
     spec.option.noslip_iterations = int(params.noslip_iterations)
     spec.option.impratio = float(params.impratio)
+    spec.option.cone = FRICTION_CONES.index(params.friction_cone)
 
 
 def build_spec(params: ScenarioParams) -> tuple[mujoco.MjSpec, list[tuple[str, str]]]:
