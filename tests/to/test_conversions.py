@@ -190,10 +190,13 @@ def test_options_round_trip_the_front_cop_margin(model):
     from lomanip_to.problem import INVALID_REQUEST, Options, ProblemError, validate_problem
 
     assert conv.options_from_msg(TrajectoryOptions()).cop_margin_front == Options().cop_margin_front == 0.02
+    assert conv.options_from_msg(TrajectoryOptions()).cop_margin_side == Options().cop_margin_side == 0.01
     prob = load_problem("case_one_step", model=model)
     prob.options = prob.options.replaced(cop_margin_front=0.04)
     req = conv.request_from_problem(prob, model.joint_names)
     assert conv.options_from_msg(req.options).cop_margin_front == 0.04
+    prob.options = prob.options.replaced(cop_margin_side=0.015)
+    assert conv.options_from_msg(conv.request_from_problem(prob, model.joint_names).options).cop_margin_side == 0.015
     prob.options = conv.options_from_msg(TrajectoryOptions(cop_margin_front=-0.01))
     with pytest.raises(ProblemError) as e:
         validate_problem(prob, model)

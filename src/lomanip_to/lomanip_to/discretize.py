@@ -236,8 +236,8 @@ class ProblemData:
                                    tuple(opt.inertial_torque_groups), opt.interval_momentum_tolerance > 0,
                                    opt.upper_body_acceleration_limit > 0, len(self.env_pairs),
                                    bool(opt.load_in_double_support_margin), float(opt.cop_margin_front),
-                                   float(opt.hand_standoff))
-        self.sole_force_points = sole_force_points(self.structure.cop_margin_front)
+                                   float(opt.hand_standoff), float(opt.cop_margin_side))
+        self.sole_force_points = sole_force_points(self.structure.cop_margin_front, self.structure.cop_margin_side)
         for oid in self.moving:  # an object set down in mid-air is refused here, before any solve
             for k in range(self.grid.K):
                 self.support_under(k, oid)

@@ -57,12 +57,15 @@ SOLE_FORCE_POINTS = SOLE_CORNERS - np.concatenate(
     [np.sign(SOLE_CORNERS[:, :2] - SOLE_CENTER[:2]) * COP_MARGIN, np.zeros((4, 1))], axis=1)
 
 
-def sole_force_points(front_margin: float = float(COP_MARGIN[0])) -> np.ndarray:
+def sole_force_points(front_margin: float = float(COP_MARGIN[0]),
+                      side_margin: float = float(COP_MARGIN[1])) -> np.ndarray:
     """The four corner force points of a sole with the toe-side points ``front_margin`` inside the
-    toe edge (``Options.cop_margin_front``; the heel and the sides keep ``COP_MARGIN``)."""
+    toe edge (``Options.cop_margin_front``) and all four ``side_margin`` inside the sole's sides
+    (``Options.cop_margin_side``); the heel keeps ``COP_MARGIN``."""
     pts = SOLE_FORCE_POINTS.copy()
     front = SOLE_CORNERS[:, 0] > SOLE_CENTER[0]
     pts[front, 0] = SOLE_CORNERS[front, 0] - front_margin
+    pts[:, 1] = SOLE_CORNERS[:, 1] - np.sign(SOLE_CORNERS[:, 1] - SOLE_CENTER[1]) * side_margin
     return pts
 
 

@@ -380,6 +380,13 @@ class Options:
     #: With 0.04 the executed CoM stays within 3 cm of the plan through the lift and the first step
     #: (docs/execution.md, session 38). The default keeps every plan as before
     cop_margin_front: float = float(COP_MARGIN[0])
+    #: m: the soles' force points lie this far inside the sole's sides (the heel's are 2.5 cm and the
+    #: toe's 3 cm from the sole's centre line), so a planned centre of pressure stays this far from a
+    #: side edge. Why: S1's plan at 2.5 kg / 1.2 rad carried a single stance on the outer toe point,
+    #: 1 cm inside the edge; executed, that sole's centre of pressure reached the edge and the robot
+    #: rolled over it (fell at 2.86 s). Solved with 0.015 that cell's plan executes to task success
+    #: (docs/execution.md, session 46). The default keeps every plan as before
+    cop_margin_side: float = float(COP_MARGIN[1])
     #: the double-stance margin above counts the objects the hands carry (free in the phase, held
     #: by a hand) with the robot: their weight, at arm's length, is what moves the centre of
     #: pressure to the toes. Off by default (measured on S2 only, docs/to.md, session 34). Why: S2's
@@ -577,6 +584,7 @@ def validate_problem(prob: Problem, model=None) -> None:
                            ("placement_tolerance", 1.0, "in [0, 1] m (0 = off)"),
                            ("carried_object_clearance", 0.2, "in [0, 0.2] m (0 = off)"),
                            ("dt_lift", 1.0, "in [0, 1] s (0 = off)"), ("cop_margin_front", 0.12, "in [0, 0.12] m"),
+                           ("cop_margin_side", 0.02, "in [0, 0.02] m"),
                            ("hand_standoff", 0.1, "in [0, 0.1] m"),
                            ("final_warm_start_max_violation", np.inf, ">= 0"),
                            ("torque_margin", 1.0, "in (0, 1]")):

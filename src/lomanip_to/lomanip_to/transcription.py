@@ -108,6 +108,8 @@ class Structure:
     cop_margin_front: float = float(COP_MARGIN[0])
     #: m a touching hand's point stays outside the surface, its force at the surface (Options.hand_standoff)
     hand_standoff: float = 0.0
+    #: m the soles' force points lie inside the sole's sides (Options.cop_margin_side)
+    cop_margin_side: float = float(COP_MARGIN[1])
 
     def key(self) -> str:
         return hashlib.sha1(repr(self).encode()).hexdigest()[:12]
@@ -303,7 +305,7 @@ class Window:
         hand_cp = {h: force_point(h, limbs[h][0], hand_R[h]) for h in HANDS}
 
         # ---- forces (robot scaled by m g)
-        sole_pts = sole_force_points(st.cop_margin_front)
+        sole_pts = sole_force_points(st.cop_margin_front, st.cop_margin_side)
         feet_pts = {}
         forces = []  # (point, u) acting on the robot
         for f in FEET:
