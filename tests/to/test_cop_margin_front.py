@@ -36,13 +36,16 @@ def test_single_stance_com_rows_use_the_moved_points(g1):
         assert ubg[win.G[f"{foot} CoM over the sole"], k][0] == pytest.approx(SOLE_CORNERS[:, 0].max() - 0.05 - SOLE_CENTER[0])
 
 
-@pytest.mark.parametrize("value", [-0.01, 0.2, float("nan")])
-def test_out_of_range_is_refused(g1, value):
+@pytest.mark.parametrize("name, value", [("cop_margin_front", -0.01), ("cop_margin_front", 0.2),
+                                         ("cop_margin_front", float("nan")), ("cop_margin_side", -0.01),
+                                         ("cop_margin_side", 0.03), ("cop_margin_side", float("nan"))])
+def test_out_of_range_is_refused(g1, name, value):
+    """Either sole margin (toe, sides) out of its range is refused before any solve."""
     prob = load_problem("case_one_step", model=g1)
-    prob.options = prob.options.replaced(cop_margin_front=value)
+    prob.options = prob.options.replaced(**{name: value})
     with pytest.raises(ProblemError) as e:
         validate_problem(prob, g1)
-    assert e.value.code == INVALID_REQUEST and "cop_margin_front" in str(e.value)
+    assert e.value.code == INVALID_REQUEST and name in str(e.value)
 
 
 def test_one_step_keeps_its_centre_of_pressure_behind_the_toe_points(g1):

@@ -7,7 +7,7 @@ from lomanip_to import solver
 from lomanip_to.discretize import ProblemData
 from lomanip_to.fixtures import load_problem
 from lomanip_to.model import FEET, SOLE_CENTER, SOLE_CORNERS, SOLE_FORCE_POINTS, sole_force_points
-from lomanip_to.problem import INVALID_REQUEST, Options, ProblemError, validate_problem
+from lomanip_to.problem import Options
 
 
 def test_default_keeps_the_model_force_points():
@@ -39,11 +39,4 @@ def test_double_stance_com_rows_use_the_moved_points(g1):
     for k in double:  # across: the force points' extent less the margin (0 here)
         assert ubg[win.G["CoM inside the double stance"], k][3] == pytest.approx(SOLE_CORNERS[:, 1].max() - 0.015)
 
-
-@pytest.mark.parametrize("value", [-0.01, 0.03, float("nan")])
-def test_out_of_range_is_refused(g1, value):
-    prob = load_problem("case_one_step", model=g1)
-    prob.options = prob.options.replaced(cop_margin_side=value)
-    with pytest.raises(ProblemError) as e:
-        validate_problem(prob, g1)
-    assert e.value.code == INVALID_REQUEST and "cop_margin_side" in str(e.value)
+# out-of-range values: tests/to/test_cop_margin_front.py::test_out_of_range_is_refused (both margins)
