@@ -134,12 +134,15 @@ def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_
     from lomanip_to.result import TOResult
 
     prob = fixtures.load_problem(problem, overrides)
-    t0 = time.perf_counter()
-    cached = solved.get(problem) if solved is not None and saved is None else None
-    res = TOResult.load(saved) if saved is not None else cached[0] if cached else solver.solve(prob)
-    solve_s = cached[1] if cached else time.perf_counter() - t0
-    if solved is not None and saved is None:
-        solved[problem] = (res, solve_s)
+    solved = {} if solved is None else solved
+    if saved is not None:
+        res, solve_s = TOResult.load(saved), 0.0
+    elif problem in solved:
+        res, solve_s = solved[problem]
+    else:
+        t0 = time.perf_counter()
+        res = solver.solve(prob)
+        res, solve_s = solved.setdefault(problem, (res, time.perf_counter() - t0))
     if res.t is None:
         res.densify()
     row = {"case": label, "problem": problem, "overrides": overrides, "world": dict(world or {}),
