@@ -10,14 +10,23 @@ from lomanip_sim.simulator import Simulation
 from lomanip_sim.world import WorldBuildError
 
 
-@pytest.fixture(scope="module")
-def lift_box_world():
+def _lift_box_world(box_position=None):
+    """case_lift_box's scene (its box moved to ``box_position`` if given) with the robot standing."""
+    import dataclasses
+
     from lomanip_to import fixtures
 
-    prob = fixtures.load_problem("case_lift_box")
+    objects = objects_from_to_problem(fixtures.load_problem("case_lift_box"))
+    if box_position is not None:
+        objects = [dataclasses.replace(o, position=box_position) if o.id == "box" else o for o in objects]
     q = G1_STAND_QPOS.copy()
     q[2] = 0.78
-    return build_scene_world(objects_from_to_problem(prob), robot_qpos=q), q
+    return build_scene_world(objects, robot_qpos=q), q
+
+
+@pytest.fixture(scope="module")
+def lift_box_world():
+    return _lift_box_world()
 
 
 def test_objects_and_robot_start(lift_box_world):
@@ -38,15 +47,7 @@ def test_box_rests_on_table_under_physics():
 
     The box sits 5 cm inside the table's edge: case_lift_box's own box has its centre of mass over
     the edge (0.27 m, ready to be grasped) and, left alone, slowly tips off it."""
-    import dataclasses
-
-    from lomanip_to import fixtures
-
-    objects = objects_from_to_problem(fixtures.load_problem("case_lift_box"))
-    objects = [dataclasses.replace(o, position=(0.32, 0.0, 0.77)) if o.id == "box" else o for o in objects]
-    q = G1_STAND_QPOS.copy()
-    q[2] = 0.78
-    sim = Simulation(build_scene_world(objects, robot_qpos=q))
+    sim = Simulation(_lift_box_world(box_position=(0.32, 0.0, 0.77))[0])
     sim.run_for(0.5)
     p = sim.object_pose("box")[0]
     assert abs(p[2] - 0.77) < 0.002 and np.linalg.norm(p[:2] - [0.32, 0.0]) < 0.002
