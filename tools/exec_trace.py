@@ -128,7 +128,7 @@ def main() -> int:
     ap.add_argument("--stop", type=float, default=float("inf"))
     ap.add_argument("--every", type=float, default=0.1, help="s between lines")
     ap.add_argument("--gains", default="{}", help="WbcGains overrides as JSON")
-    ap.add_argument("--world", default=None, help="a fixture's plan in a changed world: scenario overrides "
+    ap.add_argument("--world", default=None, help="the plan in a changed world: scenario overrides "
                     "KEY=VALUE[,KEY=VALUE] as tools/bench_exec.py --world (the plan unchanged)")
     args = ap.parse_args()
 
@@ -155,7 +155,7 @@ def main() -> int:
             print(f"exec_trace: --perturb must be one of {', '.join(bench_push.PERTURBATIONS)}", file=sys.stderr)
             return 2
         task, overrides = bench_push.task_and_overrides(bench_push.CASES.get(args.npz.name))
-        overrides = bench_push.perturbed(overrides, bench_push.PERTURBATIONS[args.perturb])
+        overrides = {**bench_push.perturbed(overrides, bench_push.PERTURBATIONS[args.perturb]), **world}
         traj, sim = _in_task_world(args.npz / "plan.npz", args.npz / "problem.pkl", task["scenario"], overrides)
     elif args.npz.with_suffix(".case.yaml").is_file():   # a generated plan saved by tools/plan_structure.py
         import plan_structure
@@ -163,7 +163,7 @@ def main() -> int:
 
         case = yaml.safe_load(args.npz.with_suffix(".case.yaml").read_text()) or {}
         task = plan_structure.load_task(case["task"])
-        overrides = {**(task.get("scenario_overrides") or {}), **(case.get("scenario_overrides") or {})}
+        overrides = {**(task.get("scenario_overrides") or {}), **(case.get("scenario_overrides") or {}), **world}
         traj, sim = _in_task_world(args.npz, args.npz.with_suffix(".problem.pkl"), task["scenario"], overrides)
     else:
         problem = args.problem or bench_exec._problem_of(args.npz.stem)
