@@ -14,6 +14,7 @@ reads S2's carry with it.
     .venv/bin/python tools/exec_trace.py <npz> --gains '{"grasp_squeeze_scale": 2.0}'
     .venv/bin/python tools/exec_trace.py runs/bench_push/base --perturb closer   # a tools/bench_push.py case
     .venv/bin/python tools/exec_trace.py runs/s2_pick_carry/s2_trolley.npz        # a tools/plan_structure.py --solve
+    .venv/bin/python tools/exec_trace.py runs/20261206-041500                     # a `make demo` / `lomanip plan` run
 """
 from __future__ import annotations
 
@@ -119,8 +120,11 @@ def _in_task_world(plan: Path, problem: Path, scenario: str, overrides: dict):
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("npz", type=Path, help="a saved TO result (TOResult.save, tools/bench_to.py; one of "
-                    "tools/plan_structure.py --solve runs in its task's world), or a tools/bench_push.py case "
-                    "folder (plan.npz + problem.pkl)")
+                    "tools/plan_structure.py --solve runs in its task's world), a tools/bench_push.py case "
+                    "folder (plan.npz + problem.pkl), or a `lomanip plan` / `make demo` run folder (task.yaml, "
+                    "logs/to_problem_<n>.pkl, logs/to_result_<n>.npz)")
+    ap.add_argument("--request", type=int, default=1, help="for a run folder: which of its TO requests "
+                    "(logs/to_result_<n>.npz)")
     ap.add_argument("--perturb", default="nominal", help="for a bench_push case: its world with this model error "
                     "(bench_push.PERTURBATIONS)")
     ap.add_argument("--problem", help="its fixture (default: the longest config name its file name starts with)")
@@ -138,8 +142,15 @@ def main() -> int:
     from lomanip_to import fixtures
     from lomanip_to.result import TOResult
 
-    push_case = args.npz.is_dir()
-    if not (args.npz / "plan.npz" if push_case else args.npz).is_file():
+    run_case = args.npz.is_dir() and (args.npz / "task.yaml").is_file()   # a `lomanip plan` / `make demo` run
+    push_case = args.npz.is_dir() and not run_case
+    if run_case:
+        plan_file = args.npz / "logs" / f"to_result_{args.request}.npz"
+        if not plan_file.is_file():
+            print(f"exec_trace: no such file: {plan_file} (runs before this file was saved cannot be replayed; "
+                  "tools/bench_push.py --problems re-solves their logs/to_problem_<n>.pkl)", file=sys.stderr)
+            return 2
+    elif not (args.npz / "plan.npz" if push_case else args.npz).is_file():
         print(f"exec_trace: no such file: {args.npz}{'/plan.npz' if push_case else ''}", file=sys.stderr)
         return 2
     try:
@@ -148,7 +159,14 @@ def main() -> int:
     except ValueError as e:
         print(f"exec_trace: {e}", file=sys.stderr)
         return 2
-    if push_case:
+    if run_case:
+        import yaml
+
+        task = yaml.safe_load((args.npz / "task.yaml").read_text()) or {}
+        overrides = {**(task.get("scenario_overrides") or {}), **world}
+        traj, sim = _in_task_world(plan_file, args.npz / "logs" / f"to_problem_{args.request}.pkl",
+                                   task["scenario"], overrides)
+    elif push_case:
         import bench_push
 
         if args.perturb not in bench_push.PERTURBATIONS:

@@ -73,6 +73,11 @@ def test_one_step_is_solved_published_and_physically_consistent(to_node, client)
     assert saved, "problem_dir holds no problem"
     prob = pickle.loads(saved[0].read_bytes())
     assert len(prob.phases) == len(req.contact_schedule.phases)
+    # and beside it the solver's result, which replays the request (tools/exec_trace.py runs/<run>)
+    from lomanip_to.result import TOResult
+
+    replay = TOResult.load(saved[0].with_name(saved[0].name.replace("problem", "result").replace(".pkl", ".npz")))
+    assert replay.stats.converged and replay.stats.iterations == res.trajectory.solver_statistics.iterations
     traj = res.trajectory
     stats = traj.solver_statistics
     assert stats.converged and stats.max_penetration <= 5e-3

@@ -114,3 +114,14 @@ def test_s1_task_asks_for_the_configuration_that_passed_its_checks():
     assert set(opts["inertial_torque_groups"]) == {"waist", "left_hand", "right_hand"}
     assert opts["waist_yaw_range"] == 0.8
     assert opts["weights"] == {"w_carry_pose": 500.0}  # session 17
+
+
+@pytest.mark.parametrize("name", ["s1_basket", "s2_trolley", "push_trolley"])
+def test_a_run_folder_task_reads_back_as_planned(name, tmp_path):
+    """`lomanip plan` writes runs/<run>/task.yaml so a run can be replayed in its own world."""
+    from lomanip_launch.plan_cmd import write_task
+
+    task = load_task(name)
+    task.scenario_overrides["box_mass"] = 3.0   # as `--set box_mass=3.0` adds it
+    write_task(tmp_path / "run" / "task.yaml", task)
+    assert load_task(str(tmp_path / "run" / "task.yaml")) == task

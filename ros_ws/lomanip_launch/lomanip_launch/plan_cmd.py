@@ -48,6 +48,18 @@ def task_from_args(args: argparse.Namespace):
     return task
 
 
+def write_task(path: Path, task) -> None:
+    """The task as this run planned it (command-line overrides included): its scenario and
+    overrides let tools/exec_trace.py replay the run's plan in the same world."""
+    from dataclasses import asdict
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = asdict(task)
+    data["placement_goals"] = [{"object": p["object_id"], "position": list(p["position"]), "yaw": p["yaw"]}
+                               for p in data["placement_goals"]]
+    path.write_text(yaml.safe_dump(data, sort_keys=False, width=110), encoding="utf-8")
+
+
 def cmd_plan(args: argparse.Namespace) -> int:
     from lomanip_launch.cli import build_graph, run_graph
 
@@ -62,6 +74,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     # recording a 1 Hz stream leaves the CPU to the optimiser (15 Hz rendering costs most of a core).
     args.sim_params = [] if args.record_camera else ["camera_rate:=1.0"]
     graph = build_graph(args, run_dir)
+    write_task(run_dir / "task.yaml", task)
     print(f"[lomanip] plan: {task.scenario}, {len(task.prompts)} subtasks: {task.prompts}", flush=True)
 
     def plan(stop_requested) -> int:

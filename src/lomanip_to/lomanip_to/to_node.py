@@ -94,6 +94,20 @@ class TONode(Node):
         except OSError as exc:   # a full disk must not stop the solve
             self.get_logger().warning(f"could not save the problem to {path}: {exc}")
 
+    def _save_result(self, result) -> None:
+        """to_result_<n>.npz beside to_problem_<n>.pkl: the solver's own result, converged or not, so
+        a run can be replayed under physics (tools/exec_trace.py runs/<run>)."""
+        if not self.problem_dir:
+            return
+        import os
+
+        path = os.path.join(self.problem_dir, f"to_result_{self._requests}.npz")
+        try:
+            result.save(path)
+            self.get_logger().info(f"result saved to {path}")
+        except OSError as exc:
+            self.get_logger().warning(f"could not save the result to {path}: {exc}")
+
     def _on_cancel(self, request, response):
         if self.worker is None:
             response.success, response.message = False, "isolate_solver is false: a solve cannot be stopped"
@@ -139,6 +153,7 @@ class TONode(Node):
             response.error_code = ErrorCode(val=exc.code, message=exc.message)
             log.error(f"optimisation stopped: {exc.message}")
             return response
+        self._save_result(result)
         stats = result.stats
         response.trajectory.solver_statistics = conv.statistics_msg(stats)
         for stage in stats.stages:  # one line per homotopy stage of each segment: where the time went
