@@ -20,7 +20,8 @@ distance, max/RMS pelvis error; writes runs/bench_push/summary.json (summary_rep
 ``lomanip plan``/``make demo`` run keeps its own under ``runs/<run>/logs/``) with the task's current
 TO options, then executes them from the scenario's start: the graph's own problems, whose plans
 fall more often than the layouts' (docs/execution.md, session 14). Cases are named after the run
-folder; ``--replay --problems ...`` executes their saved plans again.
+folder; ``--replay --problems ...`` executes their saved plans again, ``--perturb ... --problems ...``
+in the perturbed worlds.
 
 Each case saves its plan (plan.npz) and its TO problem (problem.pkl, for the contact schedule) so
 that ``--replay`` measures a controller change on the same plans in seconds instead of minutes.
@@ -241,8 +242,9 @@ def main() -> int:
         args.cases = list(CASES)
     out_root = ROOT / args.out
     out_root.mkdir(parents=True, exist_ok=True)
-    if args.perturb:
-        return perturb_table(args.cases, list(PERTURBATIONS) if "all" in args.perturb else args.perturb,
+    if args.perturb:   # the layouts' saved plans, or those of --problems (as --replay --problems)
+        cases = [problem_case_name(Path(p)) for p in args.problems] or args.cases
+        return perturb_table(cases, list(PERTURBATIONS) if "all" in args.perturb else args.perturb,
                              out_root, gains)
     jobs = [(problem_case_name(Path(p)), Path(p)) for p in args.problems] or [(n, None) for n in args.cases]
     width = max([10] + [len(n) + 1 for n, _ in jobs])
@@ -279,7 +281,8 @@ def main() -> int:
 def perturb_table(cases: list[str], names: list[str], out_root: Path, gains: dict) -> int:
     """Each saved plan executed in each perturbed world: trolley travel (m), F = fell, * = task failed."""
     print("trolley travel (m) per saved plan and model error; F fell, * task failed (planned 0.25 m)")
-    print(f"{'case':<12}" + "".join(f"{n:>14}" for n in names))
+    width = max([12] + [len(c) + 1 for c in cases])
+    print(f"{'case':<{width}}" + "".join(f"{n:>14}" for n in names))
     rows, ok = [], {n: 0 for n in names}
     for case in cases:
         cells = []
@@ -297,8 +300,8 @@ def perturb_table(cases: list[str], names: list[str], out_root: Path, gains: dic
             travel = row["task_success_detail"].split("trolley moved ")[-1].split(" m")[0]
             ok[n] += bool(row["task_success"])
             cells.append(f"{travel}{' F' if row['fell'] else ''}{'' if row['task_success'] else ' *'}")
-        print(f"{case:<12}" + "".join(f"{c:>14}" for c in cells), flush=True)
-    print(f"{'success':<12}" + "".join(f"{f'{ok[n]}/{len(cases)}':>14}" for n in names))
+        print(f"{case:<{width}}" + "".join(f"{c:>14}" for c in cells), flush=True)
+    print(f"{'success':<{width}}" + "".join(f"{f'{ok[n]}/{len(cases)}':>14}" for n in names))
     (out_root / "summary_perturb.json").write_text(json.dumps({"wbc": gains, "perturbations": {n: PERTURBATIONS[n] for n in names},
                                                               "rows": rows}, indent=2, default=str))
     return 0

@@ -501,6 +501,16 @@ def test_push_admittance_sets_the_hand_depth_from_the_measured_force():
     steps(0.0, 1)
     want = float(np.clip(float(n @ f_plan) - g.push_object_gain * 0.05, g.push_min_force, None))
     assert wbc._push_force["left_hand"][1] == pytest.approx(want, abs=1e-6)
+    # back in place but 5 cm/s faster than its plan along the push: push_object_damping N per m/s less
+    wbc.g = dataclasses.replace(g, push_object_damping=60.0)
+    sim.data.qpos[qadr : qadr + 3] += 0.05 * n
+    dof = sim.model.jnt_dofadr[sim.model.body_jntadr[box]]
+    sim.data.qvel[dof : dof + 3] = -0.05 * n
+    mujoco.mj_forward(sim.model, sim.data)
+    steps(0.0, 1)
+    slower = float(n @ f_plan) - 60.0 * 0.05
+    assert slower > g.push_min_force  # (else the bound alone would decide)
+    assert wbc._push_force["left_hand"][1] == pytest.approx(slower, abs=1e-6)
     # an object the plan lifts is not pushed: no admittance, the plan's force
     sim2, tr2 = simulation("case_lift_box")
     wbc2 = WholeBodyController(sim2.world, tr2)

@@ -5,7 +5,8 @@
     lomanip plan --scenario s2_trolley --prompt "pick up the box from the table" --place box=0.9,-1.1,0.475
 
 Outputs go to runs/<timestamp>/: summary.yaml, contacts.yaml, keyframes.yaml, trajectory.npz,
-trajectory.png (see plan_outputs), logs/ of every node, and bag/ with --record. The exit code is 0
+trajectory.png (see plan_outputs), task.yaml (the task as planned), logs/ of every node (with the TO
+node's to_problem_<n>.pkl and to_result_<n>.npz), and bag/ with --record. The exit code is 0
 only when the plan succeeded; otherwise one line names the stage and the reason.
 """
 from __future__ import annotations
