@@ -21,7 +21,8 @@ distance, max/RMS pelvis error; writes runs/bench_push/summary.json (summary_rep
 TO options, then executes them from the scenario's start: the graph's own problems, whose plans
 fall more often than the layouts' (docs/execution.md, session 14). Cases are named after the run
 folder; ``--replay --problems ...`` executes their saved plans again, ``--perturb ... --problems ...``
-in the perturbed worlds.
+in the perturbed worlds (a run's own plan, ``logs/to_result_<n>.npz`` beside its problem, is taken
+when the case has none: the plan the run executed, not a re-solve).
 
 Each case saves its plan (plan.npz) and its TO problem (problem.pkl, for the contact schedule) so
 that ``--replay`` measures a controller change on the same plans in seconds instead of minutes.
@@ -96,6 +97,20 @@ def problem_case_name(path: Path) -> str:
     if path.parent.name == "logs" and path.stem.startswith("to_problem_"):
         return f"{path.parent.parent.name}_{path.stem.rsplit('_', 1)[-1]}"
     return path.stem
+
+
+def seed_from_run(path: Path, out_root: Path) -> None:
+    """A graph run's own plan as a case (``--replay`` / ``--perturb`` with ``--problems``): copies
+    logs/to_result_<n>.npz and to_problem_<n>.pkl to <out>/<run>_<n>/ unless that case has a plan."""
+    import shutil
+
+    case_dir = out_root / problem_case_name(path)
+    result = path.with_name(path.name.replace("to_problem_", "to_result_")).with_suffix(".npz")
+    if (case_dir / "plan.npz").is_file() or not result.is_file():
+        return
+    case_dir.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(result, case_dir / "plan.npz")
+    shutil.copyfile(path, case_dir / "problem.pkl")
 
 
 def solve_saved_problem(path: Path, extra_options: dict, out_root: Path) -> dict:
@@ -242,6 +257,9 @@ def main() -> int:
         args.cases = list(CASES)
     out_root = ROOT / args.out
     out_root.mkdir(parents=True, exist_ok=True)
+    if args.replay or args.perturb:
+        for p in args.problems:
+            seed_from_run(Path(p), out_root)
     if args.perturb:   # the layouts' saved plans, or those of --problems (as --replay --problems)
         cases = [problem_case_name(Path(p)) for p in args.problems] or args.cases
         return perturb_table(cases, list(PERTURBATIONS) if "all" in args.perturb else args.perturb,
