@@ -81,32 +81,33 @@ class TONode(Node):
     def _save_problem(self, problem) -> None:
         if not self.problem_dir:
             return
-        import os
         import pickle
 
         self._requests += 1
-        path = os.path.join(self.problem_dir, f"to_problem_{self._requests}.pkl")
-        try:
-            os.makedirs(self.problem_dir, exist_ok=True)
+
+        def write(path: str) -> None:
             with open(path, "wb") as f:
                 pickle.dump(problem, f)
-            self.get_logger().info(f"problem saved to {path}")
-        except OSError as exc:   # a full disk must not stop the solve
-            self.get_logger().warning(f"could not save the problem to {path}: {exc}")
+
+        self._save_request_file("problem", f"to_problem_{self._requests}.pkl", write)
 
     def _save_result(self, result) -> None:
         """to_result_<n>.npz beside to_problem_<n>.pkl: the solver's own result, converged or not, so
         a run can be replayed under physics (tools/exec_trace.py runs/<run>)."""
-        if not self.problem_dir:
-            return
+        if self.problem_dir:
+            self._save_request_file("result", f"to_result_{self._requests}.npz", result.save)
+
+    def _save_request_file(self, what: str, name: str, write) -> None:
+        """``write(path)`` into problem_dir; a full disk must not stop the solve, so an OSError is logged."""
         import os
 
-        path = os.path.join(self.problem_dir, f"to_result_{self._requests}.npz")
+        path = os.path.join(self.problem_dir, name)
         try:
-            result.save(path)
-            self.get_logger().info(f"result saved to {path}")
+            os.makedirs(self.problem_dir, exist_ok=True)
+            write(path)
+            self.get_logger().info(f"{what} saved to {path}")
         except OSError as exc:
-            self.get_logger().warning(f"could not save the result to {path}: {exc}")
+            self.get_logger().warning(f"could not save the {what} to {path}: {exc}")
 
     def _on_cancel(self, request, response):
         if self.worker is None:
