@@ -8,10 +8,14 @@ measured contact force and, while the plan has it on an object, its position in 
 frame; the CoM and pelvis errors; each foot's measured force and, for a loaded foot, its centre of
 pressure in the foot frame (the sole spans the contact spheres, x -0.05..0.12 m, y -0.03..0.03 m;
 a centre of pressure on that edge means the foot is about to roll). docs/execution.md (session 29)
-reads S2's carry with it.
+reads S2's carry with it. ``--cop`` adds the centre of pressure the controller's QP chose for each
+stance sole (is a sole on its edge asked for, or pushed there?); ``--grip`` adds every contact of
+a hand's arm on the object the plan has it hold (where on the box each hand presses, and how near
+to sliding: tangential over normal force against the friction coefficient).
 
     .venv/bin/python tools/exec_trace.py runs/bench_to/s2_trolley_mass2.5_yaw0_all.npz --start 4 --stop 6.5
     .venv/bin/python tools/exec_trace.py <npz> --gains '{"grasp_squeeze_scale": 2.0}'
+    .venv/bin/python tools/exec_trace.py <npz> --start 4.8 --stop 5.2 --every 0.04 --cop --grip
     .venv/bin/python tools/exec_trace.py runs/bench_push/base --perturb closer   # a tools/bench_push.py case
     .venv/bin/python tools/exec_trace.py runs/s2_pick_carry/s2_trolley.npz        # a tools/plan_structure.py --solve
     .venv/bin/python tools/exec_trace.py runs/20261206-041500                     # a `make demo` / `lomanip plan` run
@@ -52,9 +56,14 @@ def _touching(model, data, body: int) -> list[str]:
     return sorted(out)
 
 
-def trace_line(ex, objects: list[str]) -> str:
-    """One line of the trace at the execution's current time."""
+def trace_line(ex, objects: list[str], cop: bool = False, grip: bool = False) -> str:
+    """One line of the trace at the execution's current time; ``cop``: each stance sole's centre of
+    pressure as the controller's QP chose it beside the measured one; ``grip``: each contact of a
+    hand's arm on the object the plan has it hold (link, point in the object's frame, normal and
+    tangential force)."""
     import mujoco
+
+    from lomanip_sim.contact_forces import arm_contacts_on
 
     from lomanip_sim.trajectory import FEET, HANDS
 
@@ -81,6 +90,10 @@ def trace_line(ex, objects: list[str]) -> str:
         if c is not None and c.object_id in frames:  # where the hand is on the object it holds in the plan
             p, R = frames[c.object_id]
             line += f" in {c.object_id} {np.round(R.T @ (ph - p), 3)}"
+            if grip:
+                body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, sim.world.objects[c.object_id].body_name)
+                line += "".join(f" [{link} {np.round(q, 3)} fn {fn:3.0f} ft {ft:3.0f}]"
+                                for link, q, fn, ft in arm_contacts_on(m, d, h.split("_")[0], body))
         if h in w._push_force:  # pushing a floor object: desired normal force, admittance shift along the normal
             n, f_des = w._push_force[h]
             line += f" fn {float(n @ w.measured_forces[h]):4.0f}/{f_des:3.0f} adm {100 * w._admittance[h][1]:4.1f}cm"
@@ -94,8 +107,11 @@ def trace_line(ex, objects: list[str]) -> str:
     parts.append(f"com err {np.round(com - lerp(w.refs.com), 3)} pelvis err {np.round(pel - lerp(w.refs.base_p), 3)}")
     for f in FEET:
         planned = "stance" if phase is not None and f in phase.contacts else "swing"
-        cop = foot_cop(m, d, w.foot_body[f])
-        cop_s = f" cop {np.round(cop, 3)}" if cop is not None else ""
+        measured = foot_cop(m, d, w.foot_body[f])
+        cop_s = f" cop {np.round(measured, 3)}" if measured is not None else ""
+        asked = w.qp_sole_cop(f) if cop else None
+        if asked is not None:
+            cop_s += f" qp cop {np.round(asked, 3)}"
         err = d.site_xpos[w.site_id[f]] - lerp(w.refs.site_p[f])
         parts.append(f"{f[0]}f {planned} f {np.linalg.norm(w.measured_forces[f]):4.0f}{cop_s} err {np.round(err, 3)}"
                      + "".join(f" on {name}" for name in _touching(m, d, w.foot_body[f])))
@@ -132,6 +148,10 @@ def main() -> int:
     ap.add_argument("--stop", type=float, default=float("inf"))
     ap.add_argument("--every", type=float, default=0.1, help="s between lines")
     ap.add_argument("--gains", default="{}", help="WbcGains overrides as JSON")
+    ap.add_argument("--cop", action="store_true", help="each stance sole's centre of pressure as the controller's "
+                    "QP chose it, beside the measured one")
+    ap.add_argument("--grip", action="store_true", help="each contact of a hand's arm on the object it holds: "
+                    "link, point in the object's frame, normal and tangential force")
     ap.add_argument("--world", default=None, help="the plan in a changed world: scenario overrides "
                     "KEY=VALUE[,KEY=VALUE] as tools/bench_exec.py --world (the plan unchanged)")
     args = ap.parse_args()
@@ -208,7 +228,7 @@ def main() -> int:
         sim.step(steps)
         if ex.time >= next_t:
             next_t += args.every
-            print(trace_line(ex, movable), flush=True)
+            print(trace_line(ex, movable, cop=args.cop, grip=args.grip), flush=True)
     print(f"fell: {ex.fell} at t={ex.time:.2f} s" if ex.fell else f"no fall up to t={ex.time:.2f} s")
     return 0
 

@@ -223,6 +223,74 @@ def test_hand_force_stops_when_the_object_is_lost():
     assert np.linalg.norm(wbc.last_forces["right_hand"]) < 1e-6
 
 
+def test_grip_contacts_sit_on_the_held_box_faces():
+    """case_lift_box held mid-air: each arm touches the box (arm_contacts_on), pressing into it, on
+    opposite side faces (the points in the box's frame at its half-width, one side each)."""
+    from lomanip_sim.contact_forces import arm_contacts_on
+
+    sim, tr = simulation("case_lift_box")
+    wbc = WholeBodyController(sim.world, tr)
+    sim.set_controller(wbc)
+    span = [ph for ph in tr.phases if "left_hand" in ph.contacts]
+    t_mid = 0.5 * (span[0].start + span[-1].end)
+    while wbc.status.t_ref < t_mid:
+        sim.step()
+    m, d = sim.model, sim.data
+    box = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "box")
+    half = max((m.geom_size[g] for g in range(m.ngeom) if m.geom_bodyid[g] == box and m.geom_type[g] == 6),
+               key=lambda h: float(np.prod(h)))
+    sides = {}
+    for side in ("left", "right"):
+        found = arm_contacts_on(m, d, side, box)
+        assert found, f"the {side} arm does not touch the box mid-lift"
+        assert sum(fn for _l, _q, fn, _ft in found) > 5.0
+        for _link, q, fn, ft in found:
+            assert fn >= 0.0 and ft >= 0.0
+            assert np.all(np.abs(q) <= half + 0.005)  # on the box's surface, not beside it
+        axis = int(np.argmax(np.abs(np.mean([q / half for _l, q, _fn, _ft in found], axis=0))))
+        sides[side] = (axis, float(np.sign(np.mean([q[axis] for _l, q, _fn, _ft in found]))))
+    assert sides["left"][0] == sides["right"][0] and sides["left"][1] == -sides["right"][1]  # opposite faces
+
+
+def test_qp_sole_centre_of_pressure_is_what_the_sole_gets():
+    """case_one_step: the centre of pressure of the QP's corner forces (qp_sole_cop, what
+    exec_trace --cop prints) lies on the sole and is, but at lift-off and touch-down, where physics
+    puts the measured one; a swing foot has none."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
+    from exec_trace import foot_cop
+
+    sim, tr = simulation("case_one_step")
+    wbc = WholeBodyController(sim.world, tr)
+    sim.set_controller(wbc)
+    from lomanip_sim.robot_model import FOOT_CONTACT_POINTS
+
+    lo, hi = FOOT_CONTACT_POINTS[:, :2].min(axis=0), FOOT_CONTACT_POINTS[:, :2].max(axis=0)
+    gaps, swing_seen = [], False
+    for k in range(int(round(tr.duration / sim.timestep))):
+        sim.step()
+        if k % 25:
+            continue
+        phase = tr.phase_at(min(wbc.status.t_ref, tr.duration))
+        for foot in ("left_foot", "right_foot"):
+            asked = wbc.qp_sole_cop(foot)
+            if foot not in phase.contacts:
+                swing_seen = swing_seen or asked is None
+                continue
+            measured = foot_cop(sim.model, sim.data, wbc.foot_body[foot])
+            if asked is None or measured is None or np.linalg.norm(wbc.measured_forces[foot]) < 100.0:
+                continue
+            assert np.all(asked >= lo - 1e-9) and np.all(asked <= hi + 1e-9)
+            gaps.append(float(np.linalg.norm(asked - measured)))
+    assert len(gaps) > 20 and swing_seen
+    # measured: median 3 mm, 90 % within 7 mm; the rest at lift-off and touch-down, where the
+    # contacts the QP counts on are still being made or broken (up to 7 cm)
+    assert np.median(gaps) < 0.01 and np.percentile(gaps, 90) < 0.02, \
+        f"QP and measured centre of pressure: median {np.median(gaps) * 100:.1f} cm, 90th percentile {np.percentile(gaps, 90) * 100:.1f} cm"
+
+
 def test_grasp_normal_turns_with_the_object():
     """A hand's contact normal (the direction of its grasp offset) turns with the object's planned
     orientation, as the TO's normals do: S2's box yaws 1.6 rad in the carry, and a fixed normal put

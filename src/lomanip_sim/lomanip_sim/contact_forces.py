@@ -83,3 +83,31 @@ def centre_of_pressure(model: mujoco.MjModel, data: mujoco.MjData, body: int,
     if den < min_force:
         return None
     return num / den, float(den)
+
+
+#: an arm's links whose contacts with a held object count as its grip (the hand box is on the wrist-yaw link)
+ARM_LINKS = ("elbow_link", "wrist_roll_link", "wrist_pitch_link", "wrist_yaw_link")
+
+
+def arm_contacts_on(model: mujoco.MjModel, data: mujoco.MjData, side: str,
+                    body: int) -> list[tuple[str, np.ndarray, float, float]]:
+    """[(link, point in ``body``'s frame (3,), normal force N, tangential force N)] of every contact
+    between the ``side`` ("left" / "right") arm's elbow and wrist links and body ``body``.
+
+    Why: where on a held box each hand presses, and how close to sliding (tangential over normal
+    against the friction coefficient), says how a grip gives way; the limb's net force does not
+    (tools/exec_trace.py --grip; docs/execution.md, session 48).
+    """
+    links = {mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{side}_{name}"): name for name in ARM_LINKS}
+    links.pop(-1, None)
+    R, p = data.xmat[body].reshape(3, 3), data.xpos[body]
+    out, f6 = [], np.zeros(6)
+    for i in range(int(data.ncon)):
+        c = data.contact[i]
+        b1, b2 = int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2])
+        arm = b1 if b2 == body else b2 if b1 == body else None
+        if arm is None or arm not in links:
+            continue
+        mujoco.mj_contactForce(model, data, i, f6)
+        out.append((links[arm], R.T @ (c.pos - p), float(f6[0]), float(np.hypot(f6[1], f6[2]))))
+    return out

@@ -523,6 +523,7 @@ class WholeBodyController:
         self.t0 = 0.0
         self.status = WbcStatus()
         self.last_forces: dict[str, np.ndarray] = {}
+        self.last_sole_forces: dict[str, np.ndarray] = {}  # stance foot -> (4, 3) the QP's corner forces (world)
         #: moment (world, N m) the QP put on each hand contact about its site (hand_patch_half)
         self.last_hand_moments: dict[str, np.ndarray] = {}
         self._last_tau = np.zeros(NJ)
@@ -1069,6 +1070,20 @@ class WholeBodyController:
             shift *= g.step_adjust_max / n
         return np.array([shift[0], shift[1], 0.0])
 
+    def qp_sole_cop(self, limb: str) -> np.ndarray | None:
+        """(2,) the centre of pressure (sole frame x, y, as ``FOOT_CONTACT_POINTS``) of the corner forces
+        the last QP chose for stance foot ``limb``, or None (a swing foot, or under 1 N). Why: set
+        against the measured one it says whether a sole on its edge was asked for or not
+        (tools/exec_trace.py --cop; docs/execution.md, session 48)."""
+        f = self.last_sole_forces.get(limb)
+        if f is None or len(f) != len(_SOLE_CORNERS):
+            return None
+        n = self.model.opt.gravity / -np.linalg.norm(self.model.opt.gravity)  # the floor's normal (soles on flat tops)
+        fn = f @ n
+        if fn.sum() < 1.0:
+            return None
+        return (fn @ _SOLE_CORNERS[:, :2]) / fn.sum()
+
     def angular_momentum_matrix(self, data: mujoco.MjData, com: np.ndarray) -> np.ndarray:
         """A (3 x NV): the robot's angular momentum about its CoM ``com`` is A @ qvel (world frame)."""
         m, A = self.model, np.zeros((3, NV))
@@ -1559,6 +1574,8 @@ class WholeBodyController:
             tau = np.clip(x[:NJ], -self.limits, self.limits)
             self._last_tau = tau
             self.last_forces = {limb: sum(x[NJ + NV + 3 * k : NJ + NV + 3 * k + 3] for k in ks) for limb, ks in by_limb.items()}
+            self.last_sole_forces = {limb: x[NJ + NV + 3 * ks[0] : NJ + NV + 3 * ks[-1] + 3].reshape(-1, 3).copy()
+                                     for limb, ks in by_limb.items() if limb in FEET}
             self.last_hand_moments = {limb: x[NJ + NV + nf + 3 * k : NJ + NV + nf + 3 * k + 3]
                                       for k, (limb, _j) in enumerate(hand_points)} if nm else {}
             for limb in HANDS:
