@@ -192,10 +192,8 @@ def test_lift_box_friction_grasp():
     assert sim.model.neq == 0  # no equality (weld) constraints exist in the world
 
 
-def test_hand_force_stops_when_the_object_is_lost():
-    """The planned hand force is fed forward while the hand touches its object, and stops
-    ``hand_lost_time`` after the object has gone (S1's box slipping out of the hands in the lift:
-    the QP kept assuming its squeeze and weight for the rest of the carry)."""
+def _lift_box_held_mid_air():
+    """(sim, trajectory, controller) of case_lift_box executed to the middle of the hands' contact."""
     sim, tr = simulation("case_lift_box")
     wbc = WholeBodyController(sim.world, tr)
     sim.set_controller(wbc)
@@ -203,6 +201,14 @@ def test_hand_force_stops_when_the_object_is_lost():
     t_mid = 0.5 * (span[0].start + span[-1].end)
     while wbc.status.t_ref < t_mid:
         sim.step()
+    return sim, tr, wbc
+
+
+def test_hand_force_stops_when_the_object_is_lost():
+    """The planned hand force is fed forward while the hand touches its object, and stops
+    ``hand_lost_time`` after the object has gone (S1's box slipping out of the hands in the lift:
+    the QP kept assuming its squeeze and weight for the rest of the carry)."""
+    sim, tr, wbc = _lift_box_held_mid_air()
     i, s = tr.index_at(wbc.status.t_ref)
     planned = wbc.hand_feedforward("left_hand", tr.phase_at(wbc.status.t_ref).contacts, i, s)
     assert np.linalg.norm(planned) > 1.0
@@ -228,13 +234,7 @@ def test_grip_contacts_sit_on_the_held_box_faces():
     opposite side faces (the points in the box's frame at its half-width, one side each)."""
     from lomanip_sim.contact_forces import arm_contacts_on
 
-    sim, tr = simulation("case_lift_box")
-    wbc = WholeBodyController(sim.world, tr)
-    sim.set_controller(wbc)
-    span = [ph for ph in tr.phases if "left_hand" in ph.contacts]
-    t_mid = 0.5 * (span[0].start + span[-1].end)
-    while wbc.status.t_ref < t_mid:
-        sim.step()
+    sim, tr, wbc = _lift_box_held_mid_air()
     m, d = sim.model, sim.data
     box = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "box")
     half = max((m.geom_size[g] for g in range(m.ngeom) if m.geom_bodyid[g] == box and m.geom_type[g] == 6),
