@@ -59,12 +59,11 @@ def _touching(model, data, body: int) -> list[str]:
 def trace_line(ex, objects: list[str], cop: bool = False, grip: bool = False) -> str:
     """One line of the trace at the execution's current time; ``cop``: each stance sole's centre of
     pressure as the controller's QP chose it beside the measured one; ``grip``: each contact of a
-    hand's arm on the object the plan has it hold (link, point in the object's frame, normal and
-    tangential force)."""
+    hand's arm on the object the plan has it hold (link, point in the object body's frame, normal
+    and tangential force)."""
     import mujoco
 
     from lomanip_sim.contact_forces import arm_contacts_on
-
     from lomanip_sim.trajectory import FEET, HANDS
 
     sim, tr, w = ex.sim, ex.traj, ex.wbc
@@ -151,7 +150,7 @@ def main() -> int:
     ap.add_argument("--cop", action="store_true", help="each stance sole's centre of pressure as the controller's "
                     "QP chose it, beside the measured one")
     ap.add_argument("--grip", action="store_true", help="each contact of a hand's arm on the object it holds: "
-                    "link, point in the object's frame, normal and tangential force")
+                    "link, point in the object body's frame, normal and tangential force")
     ap.add_argument("--world", default=None, help="the plan in a changed world: scenario overrides "
                     "KEY=VALUE[,KEY=VALUE] as tools/bench_exec.py --world (the plan unchanged)")
     args = ap.parse_args()
