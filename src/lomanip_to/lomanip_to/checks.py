@@ -84,7 +84,7 @@ def penetration_per_knot(model: G1Model, data, res):
     K = len(res.t_knots)
     total = np.zeros(K)
     worst, worst_k = 0.0, 0
-    sp = self_pairs(model, data.prob.options.hand_body_self_pairs)
+    sp = self_pairs(model, data.prob.options.hand_body_self_pairs, data.prob.options.arm_body_self_pairs)
     for k in range(K):
         cs = model.numeric(res.x_knots[k])["spheres"]
         depth = []

@@ -122,8 +122,9 @@ def carried_points(o: SceneObject, r: float = CARRIED_POINT_RADIUS) -> np.ndarra
     return np.array(out).reshape(-1, 4)
 
 
-def self_pairs(model: G1Model, hand_body: bool = False) -> tuple:
-    """Sphere index pairs of the self-collision rows; ``hand_body``: Options.hand_body_self_pairs."""
+def self_pairs(model: G1Model, hand_body: bool = False, arm_body: bool = False) -> tuple:
+    """Sphere index pairs of the self-collision rows; ``hand_body``: Options.hand_body_self_pairs,
+    ``arm_body``: Options.arm_body_self_pairs."""
     names = [s.name for s in model.spheres]
     idx = {n: i for i, n in enumerate(names)}
     pairs = []
@@ -138,6 +139,13 @@ def self_pairs(model: G1Model, hand_body: bool = False) -> tuple:
         for arm in (f"{s}_hand", f"{s}_hand_tip", f"{s}_wrist"):
             for other in ("pelvis", f"{s}_hip_pitch", f"{s}_hip_roll", f"{s}_thigh_0", f"{s}_thigh_1"):
                 pairs.append((idx[arm], idx[other]))
+        if arm_body:
+            for arm in (f"{s}_forearm_0", f"{s}_upper_arm_0"):
+                for other in ("torso_0", "torso_low_0", "torso_low_1", f"{s}_thigh_0", f"{s}_hip_front"):
+                    pairs.append((idx[arm], idx[other]))
+            for arm in (f"{s}_hand", f"{s}_hand_tip", f"{s}_wrist"):
+                if not hand_body:  # (hand_body has these)
+                    pairs.append((idx[arm], idx[f"{s}_hip_front"]))
         # elbow region against the knee in a squat: S1's lift had the forearm 50 mm into the shin
         for arm in (f"{s}_upper_arm_0", f"{s}_forearm_0"):
             for other in (f"{s}_thigh_1", f"{s}_shin_0", f"{s}_shin_1"):
@@ -232,7 +240,7 @@ class ProblemData:
             self.pairs = list(pairs)
         self.env_pairs = list(env_pairs) if env_pairs is not None else self._choose_env_pairs()
         self.structure = Structure(len(self.moving), tuple(s for s, _ in self.pairs),
-                                   self_pairs(model, opt.hand_body_self_pairs) if opt.self_collision else (),
+                                   self_pairs(model, opt.hand_body_self_pairs, opt.arm_body_self_pairs) if opt.self_collision else (),
                                    tuple(opt.inertial_torque_groups), opt.interval_momentum_tolerance > 0,
                                    opt.upper_body_acceleration_limit > 0, len(self.env_pairs),
                                    bool(opt.load_in_double_support_margin), float(opt.cop_margin_front),

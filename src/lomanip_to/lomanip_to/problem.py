@@ -335,6 +335,14 @@ class Options:
     #: jammed between the torso and the right hip in the step onto the box and the robot fell at
     #: 14.0 s (docs/execution.md, session 44). Off by default: it changes every plan
     hand_body_self_pairs: bool = False
+    #: more self-collision pairs for the arms on their own side (:func:`lomanip_to.discretize.self_pairs`):
+    #: forearm and upper arm against the torso (its upper and lower front), the thigh's upper sphere
+    #: and the hip's front; hand and wrist against the hip's front. Why: S1 nominal's plan of session
+    #: 48 stepped onto the box with its left upper arm 8.5 cm inside the torso sphere, the right
+    #: forearm 3.8 cm inside the right thigh's and the left hand tip in the left hip's front, pairs
+    #: without rows; executed, the rising thigh struck the hand (docs/to.md, session 48). Off by
+    #: default: it changes every plan
+    arm_body_self_pairs: bool = False
     #: the forearm spheres (elbow to wrist) stay out of an object while that side's hand touches it
     #: (False: off with the hand's own spheres, as before). Why: with them off, S1's and S2's plans
     #: carried the box with the wrist links 3-8 cm inside it on MuJoCo's meshes; executed, the elbows
