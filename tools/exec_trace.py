@@ -32,16 +32,6 @@ ROOT = Path(__file__).resolve().parents[1]
 for _p in ("tools", "src/lomanip_sim", "src/lomanip_to"):
     sys.path.insert(0, str(ROOT / _p))
 
-def foot_cop(model, data, body: int) -> np.ndarray | None:
-    """Centre of pressure (x, y) of the contacts on ``body`` in its own frame, or None when unloaded."""
-    from lomanip_sim.contact_forces import centre_of_pressure
-
-    found = centre_of_pressure(model, data, body)
-    if found is None:
-        return None
-    R = data.xmat[body].reshape(3, 3)
-    return (R.T @ (found[0] - data.xpos[body]))[:2]
-
 
 def _touching(model, data, body: int) -> list[str]:
     """Names of the bodies other than the world (floor) that ``body``'s geoms touch now."""
@@ -63,7 +53,7 @@ def trace_line(ex, objects: list[str], cop: bool = False, grip: bool = False) ->
     and tangential force)."""
     import mujoco
 
-    from lomanip_sim.contact_forces import arm_contacts_on
+    from lomanip_sim.contact_forces import arm_contacts_on, centre_of_pressure_in_body
     from lomanip_sim.trajectory import FEET, HANDS
 
     sim, tr, w = ex.sim, ex.traj, ex.wbc
@@ -106,7 +96,7 @@ def trace_line(ex, objects: list[str], cop: bool = False, grip: bool = False) ->
     parts.append(f"com err {np.round(com - lerp(w.refs.com), 3)} pelvis err {np.round(pel - lerp(w.refs.base_p), 3)}")
     for f in FEET:
         planned = "stance" if phase is not None and f in phase.contacts else "swing"
-        measured = foot_cop(m, d, w.foot_body[f])
+        measured = centre_of_pressure_in_body(m, d, w.foot_body[f])
         cop_s = f" cop {np.round(measured, 3)}" if measured is not None else ""
         asked = w.qp_sole_cop(f) if cop else None
         if asked is not None:

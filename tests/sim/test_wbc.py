@@ -256,11 +256,7 @@ def test_qp_sole_centre_of_pressure_is_what_the_sole_gets():
     """case_one_step: the centre of pressure of the QP's corner forces (qp_sole_cop, what
     exec_trace --cop prints) lies on the sole and is, but at lift-off and touch-down, where physics
     puts the measured one; a swing foot has none."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
-    from exec_trace import foot_cop
+    from lomanip_sim.contact_forces import centre_of_pressure_in_body
 
     sim, tr = simulation("case_one_step")
     wbc = WholeBodyController(sim.world, tr)
@@ -279,7 +275,7 @@ def test_qp_sole_centre_of_pressure_is_what_the_sole_gets():
             if foot not in phase.contacts:
                 swing_seen = swing_seen or asked is None
                 continue
-            measured = foot_cop(sim.model, sim.data, wbc.foot_body[foot])
+            measured = centre_of_pressure_in_body(sim.model, sim.data, wbc.foot_body[foot])
             if asked is None or measured is None or np.linalg.norm(wbc.measured_forces[foot]) < 100.0:
                 continue
             assert np.all(asked >= lo - 1e-9) and np.all(asked <= hi + 1e-9)

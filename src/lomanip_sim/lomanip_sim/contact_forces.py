@@ -85,6 +85,16 @@ def centre_of_pressure(model: mujoco.MjModel, data: mujoco.MjData, body: int,
     return num / den, float(den)
 
 
+def centre_of_pressure_in_body(model: mujoco.MjModel, data: mujoco.MjData, body: int) -> np.ndarray | None:
+    """(2,) :func:`centre_of_pressure` of ``body``'s contacts in the body's own frame (x, y), or None
+    when unloaded: for a sole, where on it the load sits (the G1's foot frame as ``FOOT_CONTACT_POINTS``)."""
+    found = centre_of_pressure(model, data, body)
+    if found is None:
+        return None
+    R = data.xmat[body].reshape(3, 3)
+    return (R.T @ (found[0] - data.xpos[body]))[:2]
+
+
 #: an arm's links whose contacts with a held object count as its grip (the hand box is on the wrist-yaw link)
 ARM_LINKS = ("elbow_link", "wrist_roll_link", "wrist_pitch_link", "wrist_yaw_link")
 

@@ -1574,7 +1574,7 @@ class WholeBodyController:
             tau = np.clip(x[:NJ], -self.limits, self.limits)
             self._last_tau = tau
             self.last_forces = {limb: sum(x[NJ + NV + 3 * k : NJ + NV + 3 * k + 3] for k in ks) for limb, ks in by_limb.items()}
-            self.last_sole_forces = {limb: x[NJ + NV + 3 * ks[0] : NJ + NV + 3 * ks[-1] + 3].reshape(-1, 3).copy()
+            self.last_sole_forces = {limb: x[NJ + NV + 3 * ks[0] : NJ + NV + 3 * ks[-1] + 3].reshape(-1, 3)
                                      for limb, ks in by_limb.items() if limb in FEET}
             self.last_hand_moments = {limb: x[NJ + NV + nf + 3 * k : NJ + NV + nf + 3 * k + 3]
                                       for k, (limb, _j) in enumerate(hand_points)} if nm else {}
