@@ -10,7 +10,9 @@ fixture names a lomanip_sim scenario runs in that scenario's world (S1/S2 task s
 in a world built from the plan's own scene. Prints per case: TO convergence, task success, fell,
 max/RMS pelvis position and joint tracking error, final object position error, real-time factor
 (unpaced: simulated time / wall time of physics + control), the largest contact force on a robot
-link other than the feet and hands ("unplanned N": the plan has no such contact), and saves under runs/bench_exec/<case>/
+link other than the feet and hands ("unplanned N": the plan has no such contact), where the plan's own
+configurations already overlap the simulator's meshes (lomanip_sim.plan_geometry: the deepest
+body-on-object, self and arm-on-object overlap, 5 mm or more, none simulated), and saves under runs/bench_exec/<case>/
 a video (MP4, or GIF without an MP4 encoder), PNG frames, tracking.png, forces.png, metrics.json.
 
     .venv/bin/python tools/bench_exec.py                          # the three TO test cases (~2.5 min)
@@ -129,6 +131,7 @@ def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_
     """Execute one plan (saved, or solved here; ``solved`` caches the latter by fixture for --world)."""
     from lomanip_sim.execution import Execution
     from lomanip_sim.media import save_run
+    from lomanip_sim.plan_geometry import plan_penetrations
     from lomanip_sim.trajectory import TrajectoryError, from_to_result
     from lomanip_to import fixtures, solver
     from lomanip_to.result import TOResult
@@ -151,6 +154,7 @@ def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_
         traj = from_to_result(res, prob.phases)
         sim, scenario = plan_world(problem, overrides, prob, traj.qpos(0), world)
         traj.scenario = scenario
+        overlaps = plan_penetrations(sim, traj, min_depth=0.005)
         ex = Execution(sim, traj, gains=gains)
     except TrajectoryError as e:
         row.update(error=f"{e.code}: {e.message}")
@@ -158,6 +162,9 @@ def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_
     m = ex.run()
     files = save_run(out_root / label, ex, label, video=video)
     row.update(m.as_dict(), plan_duration=traj.duration, files=files)
+    # deepest of each kind (lomanip_sim.plan_geometry), before anything is simulated
+    row["plan_mesh_overlaps"] = {k: str(next(p for p in overlaps if p.kind == k))
+                                 for k in ("body", "self", "arm") if any(p.kind == k for p in overlaps)}
     return row
 
 
@@ -220,6 +227,8 @@ def main() -> int:
               f"{100 * row['final_object_position_error']:>10.1f}/{row['final_object_tilt_error']:<5.2f}"
               f"{row['real_time_factor']:>6.2f}{row['qp_failures']:>7d}{row['max_unplanned_contact_force']:>12.0f}")
         print(f"    {row['task_success_detail']}")
+        for kind, what in row["plan_mesh_overlaps"].items():
+            print(f"    the plan's own meshes overlap ({kind}): {what}")
         if row["unplanned_contact"]:
             print(f"    largest unplanned contact: {row['max_unplanned_contact_force']:.0f} N, {row['unplanned_contact']}")
     ok = [r for r in rows if r.get("task_success")]

@@ -1311,13 +1311,16 @@ class ProblemData:
         primitives: LEG_OBJECT_CLEARANCE for feet and shins, else 0; while ``oid`` is carried at
         knot ``k``, at least Options.carried_object_clearance for every sphere but the hands' and
         forearms' (they hold it); with Options.forearm_clear_of_held_object, -HELD_OBJECT_FOREARM_DEPTH
-        (less Options.hand_standoff) for a forearm sphere against the object its hand holds."""
+        (less Options.hand_standoff) for a forearm sphere against the object its hand holds;
+        Options.body_object_clearance for the pelvis, torso, head and thigh spheres."""
         grp = self.model.spheres[s].group
         if self.prob.options.forearm_clear_of_held_object and grp.endswith("_forearm") and k is not None \
                 and self._hand_holds(k, grp.split("_")[0], oid):
             # a hand standing off the face (Options.hand_standoff) has already taken its wrist that far out
             return -max(HELD_OBJECT_FOREARM_DEPTH - self.prob.options.hand_standoff, 0.0)
         out = LEG_OBJECT_CLEARANCE if grp.endswith(("_foot", "_shin")) else 0.0
+        if grp in ("pelvis", "torso", "head") or grp.endswith("_thigh"):
+            out = max(out, self.prob.options.body_object_clearance)
         carried = self.prob.options.carried_object_clearance
         if carried > 0 and k is not None and not grp.endswith(("_hand", "_forearm")) \
                 and self.obj_mode(k, oid) == "free":

@@ -443,6 +443,13 @@ class Options:
     #: every knot (clearance 0) and between knots it passed up to 15 cm through them (docs/to.md,
     #: session 19)
     carried_object_clearance: float = 0.0
+    #: m: the TO's collision rows keep the pelvis, torso, head and thigh spheres this far from every
+    #: object (0 = off; the feet and shins keep their own 3 cm, LEG_OBJECT_CLEARANCE). Why: those
+    #: spheres sit inside the meshes the simulator collides (the torso mesh 1.7 cm past its spheres),
+    #: and the rows hold only at the knots: S2's nominal plan kept them at 0.0 cm from the table top
+    #: and a table leg at 4.7-5.0 s, and between the knots 4.8 and 5.0 s the left hip's meshes cut
+    #: 3.9 cm into the leg; executed, the left hip struck the table and the robot fell (session 49)
+    body_object_clearance: float = 0.0
     #: m: the nominal of an object carried free comes to at most this horizontal distance from the
     #: base (over ``CARRY_REACH_BLEND`` s after it leaves its support and back before it is set down;
     #: 0 = off: it keeps its pose relative to the base from the grasp).  Why: S2's box nominal stayed
@@ -591,6 +598,7 @@ def validate_problem(prob: Problem, model=None) -> None:
                            ("upper_body_speed_limit", np.inf, ">= 0 (0 = off)"), ("carry_reach", 1.0, "in [0, 1] m (0 = off)"),
                            ("placement_tolerance", 1.0, "in [0, 1] m (0 = off)"),
                            ("carried_object_clearance", 0.2, "in [0, 0.2] m (0 = off)"),
+                           ("body_object_clearance", 0.2, "in [0, 0.2] m (0 = off)"),
                            ("dt_lift", 1.0, "in [0, 1] s (0 = off)"), ("cop_margin_front", 0.12, "in [0, 0.12] m"),
                            ("cop_margin_side", 0.02, "in [0, 0.02] m"),
                            ("hand_standoff", 0.1, "in [0, 0.1] m"),
