@@ -32,3 +32,24 @@ def test_the_problem_takes_them_and_starts_clear_of_them(g1):
     for i, j in set(self_pairs(g1, arm_body=True)) - set(self_pairs(g1)):
         gap = np.linalg.norm(cs[i] - cs[j]) - g1.spheres[i].radius - g1.spheres[j].radius
         assert gap > 0.0, f"{g1.spheres[i].name} - {g1.spheres[j].name}: {gap * 100:.1f} cm"
+
+
+def test_the_arm_rows_hold_only_while_that_hand_is_free(g1):
+    from lomanip_to import solver
+    from lomanip_to.discretize import arm_body_pairs
+
+    prob = load_problem("case_lift_box", model=g1)
+    prob.options = prob.options.replaced(arm_body_self_pairs=True)
+    data = ProblemData(prob, g1)
+    win, _ = solver.get_window(g1, data.structure)
+    _, _, lbg, _, _, _ = data.fill(win, 6.0, True, False, False)  # the final (hard) stage's bounds
+    holding = [k for k in range(data.grid.K) if data.contact(k, "left_hand") is not None]
+    free = [k for k in range(data.grid.K) if data.contact(k, "left_hand") is None]
+    assert holding and free
+    for (a, b), side in arm_body_pairs(g1).items():
+        row = lbg[win.G[f"self {a} {b}"]]
+        hand_on = [k for k in range(data.grid.K) if data.contact(k, f"{side}_hand") is not None]
+        assert np.all(row[:, hand_on] == -np.inf) and np.all(np.delete(row, hand_on, axis=1) == 0.0)
+    # the default pairs hold at every knot
+    i, j = self_pairs(g1)[0]
+    assert np.all(lbg[win.G[f"self {i} {j}"]] == 0.0)

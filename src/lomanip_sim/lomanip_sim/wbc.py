@@ -62,6 +62,12 @@ class WbcGains:
 
     com_kp: float = 100.0
     com_kd: float = 20.0
+    # CoM gains while the schedule has an object carried free (Phase.free_objects; 0 = com_kp / com_kd).
+    # Why: in S1's carry the stiff CoM task drove the stance sole's centre of pressure to its toe edge
+    # and the robot tipped forwards (session 48); softer gains on the whole plan lost 2-4 of the 64
+    # demo pushes, which carry nothing free
+    carry_com_kp: float = 0.0
+    carry_com_kd: float = 0.0
     base_kp: float = 100.0  # pelvis orientation and position
     base_kd: float = 20.0
     foot_kp: float = 400.0
@@ -1398,7 +1404,12 @@ class WholeBodyController:
                 a = min((t - tr.duration) / g.hold_recentre_time, 1.0)
                 com_ref = com_ref.copy()
                 com_ref[:2] += a * (mid[:2] - com_ref[:2])
-        b = dlerp(R_.com_a) + g.com_kp * (com_ref - com) + g.com_kd * (dlerp(R_.com_v) - Jc @ v)
+        kp, kd = g.com_kp, g.com_kd
+        if g.carry_com_kp > 0 or g.carry_com_kd > 0:
+            ph = tr.phase_at(min(t, tr.duration))
+            if ph is not None and ph.free_objects:
+                kp, kd = g.carry_com_kp or kp, g.carry_com_kd or kd
+        b = dlerp(R_.com_a) + kp * (com_ref - com) + kd * (dlerp(R_.com_v) - Jc @ v)
         task(Jc, b, g.w_com)
         # --- centroidal angular momentum (A_dot v by a finite difference over the control period)
         if g.w_angular_momentum > 0 and R_.angmom is not None:

@@ -122,6 +122,22 @@ def carried_points(o: SceneObject, r: float = CARRIED_POINT_RADIUS) -> np.ndarra
     return np.array(out).reshape(-1, 4)
 
 
+def arm_body_pairs(model: G1Model, hand_body: bool = False) -> dict:
+    """{(sphere i, sphere j): side} of Options.arm_body_self_pairs: per side the forearm and upper arm
+    against the torso, the own upper thigh and hip front, and the hand, hand tip and wrist against
+    the own hip front (those three are in ``hand_body``'s pairs already)."""
+    idx = {s.name: i for i, s in enumerate(model.spheres)}
+    out = {}
+    for s in ("left", "right"):
+        for arm in (f"{s}_forearm_0", f"{s}_upper_arm_0"):
+            for other in ("torso_0", "torso_low_0", "torso_low_1", f"{s}_thigh_0", f"{s}_hip_front"):
+                out[(idx[arm], idx[other])] = s
+        if not hand_body:
+            for arm in (f"{s}_hand", f"{s}_hand_tip", f"{s}_wrist"):
+                out[(idx[arm], idx[f"{s}_hip_front"])] = s
+    return out
+
+
 def self_pairs(model: G1Model, hand_body: bool = False, arm_body: bool = False) -> tuple:
     """Sphere index pairs of the self-collision rows; ``hand_body``: Options.hand_body_self_pairs,
     ``arm_body``: Options.arm_body_self_pairs."""
@@ -140,12 +156,7 @@ def self_pairs(model: G1Model, hand_body: bool = False, arm_body: bool = False) 
             for other in ("pelvis", f"{s}_hip_pitch", f"{s}_hip_roll", f"{s}_thigh_0", f"{s}_thigh_1"):
                 pairs.append((idx[arm], idx[other]))
         if arm_body:
-            for arm in (f"{s}_forearm_0", f"{s}_upper_arm_0"):
-                for other in ("torso_0", "torso_low_0", "torso_low_1", f"{s}_thigh_0", f"{s}_hip_front"):
-                    pairs.append((idx[arm], idx[other]))
-            for arm in (f"{s}_hand", f"{s}_hand_tip", f"{s}_wrist"):
-                if not hand_body:  # (hand_body has these)
-                    pairs.append((idx[arm], idx[f"{s}_hip_front"]))
+            pairs += [p for p, side in arm_body_pairs(model, hand_body).items() if side == s]
         # elbow region against the knee in a squat: S1's lift had the forearm 50 mm into the shin
         for arm in (f"{s}_upper_arm_0", f"{s}_forearm_0"):
             for other in (f"{s}_thigh_1", f"{s}_shin_0", f"{s}_shin_1"):
@@ -245,6 +256,7 @@ class ProblemData:
                                    opt.upper_body_acceleration_limit > 0, len(self.env_pairs),
                                    bool(opt.load_in_double_support_margin), float(opt.cop_margin_front),
                                    float(opt.hand_standoff), float(opt.cop_margin_side))
+        self._arm_body_side = arm_body_pairs(model, opt.hand_body_self_pairs) if opt.arm_body_self_pairs else {}
         self.sole_force_points = sole_force_points(self.structure.cop_margin_front, self.structure.cop_margin_side)
         for oid in self.moving:  # an object set down in mid-air is refused here, before any solve
             for k in range(self.grid.K):
@@ -970,8 +982,10 @@ class ProblemData:
                 rows(f"c{i} collision", k, self._clearance(s, k, oid) if (hard and on) else -INF, INF)
                 rows(f"c{i} homotopy surrogate", k, 0 if (homotopy is True and self._surrogate_on(k, s, oid)) else -INF,
                      INF)
-            for (a, b) in win.st.self_pairs:
-                rows(f"self {a} {b}", k, 0 if hard else -INF, INF)
+            for (a, b) in win.st.self_pairs:  # an arm-body pair holds while its hand is free
+                side = self._arm_body_side.get((a, b))
+                on = hard and (side is None or self.contact(k, f"{side}_hand") is None)
+                rows(f"self {a} {b}", k, 0 if on else -INF, INF)
             for i, (oid, _, _) in enumerate(self.env_pairs):  # hard in every stage: no surrogate
                 rows(f"e{i} carried object collision", k, 0 if self._env_enabled(k, oid) else -INF, INF)
             rows("floor clearance", k, 0, INF)  # smooth, so on in every homotopy stage

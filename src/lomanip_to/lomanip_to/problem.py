@@ -23,7 +23,7 @@ from __future__ import annotations
 import io
 import math
 from contextlib import redirect_stdout
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
@@ -340,8 +340,10 @@ class Options:
     #: and the hip's front; hand and wrist against the hip's front. Why: S1 nominal's plan of session
     #: 48 stepped onto the box with its left upper arm 8.5 cm inside the torso sphere, the right
     #: forearm 3.8 cm inside the right thigh's and the left hand tip in the left hip's front, pairs
-    #: without rows; executed, the rising thigh struck the hand (docs/to.md, session 48). Off by
-    #: default: it changes every plan
+    #: without rows; executed, the rising thigh struck the hand (docs/to.md, session 48). The rows
+    #: hold only while that side's hand touches nothing (a hand on an object is placed by its grip;
+    #: with them at every knot S1's carry did not converge, session 48); the physical check counts
+    #: them at every knot. Off by default: it changes every plan (``subtask_options`` sets it for some)
     arm_body_self_pairs: bool = False
     #: the forearm spheres (elbow to wrist) stay out of an object while that side's hand touches it
     #: (False: off with the hand's own spheres, as before). Why: with them off, S1's and S2's plans
@@ -462,11 +464,34 @@ class Options:
     #: (docs/to.md, session 27)
     placement_tolerance: float = 0.0
     weights: dict = field(default_factory=dict)
+    #: {subtask index: {option: value}}: options of the segments that solve one subtask
+    #: (``subtask_segments``), e.g. ``{2: {arm_body_self_pairs: true}}``; the stitched whole horizon
+    #: is evaluated and checked with the problem's own options. Why: a row set that one subtask needs
+    #: changed every subtask's solve path when set for all (S1 with arm_body_self_pairs, session 48)
+    subtask_options: dict = field(default_factory=dict)
     #: extra ipopt options (expert use; e.g. {"mu_strategy": "monotone"})
     ipopt: dict = field(default_factory=dict)
 
     def replaced(self, **kw) -> "Options":
         return replace(self, **kw)
+
+
+def _check_subtask_options(prob, model) -> None:
+    """Options.subtask_options names subtasks of the schedule and options that exist, with valid values."""
+    subs = prob.options.subtask_options
+    if not isinstance(subs, dict):
+        raise ProblemError(INVALID_REQUEST, "options.subtask_options must map subtask indices to options", "options")
+    known = {ph.subtask_index for ph in prob.phases}
+    names = {f.name for f in fields(Options)} - {"subtask_options"}
+    for sub, over in subs.items():
+        if sub not in known:
+            raise ProblemError(INVALID_REQUEST, f"options.subtask_options: no subtask {sub!r} in the schedule "
+                                                f"(subtasks: {sorted(known)})", "options")
+        bad = sorted(set(over or {}) - names) if isinstance(over, dict) else [repr(over)]
+        if bad:
+            raise ProblemError(INVALID_REQUEST, f"options.subtask_options[{sub}]: unknown option(s) {', '.join(bad)}",
+                               "options")
+        validate_problem(replace(prob, options=prob.options.replaced(**over, subtask_options={})), model)
 
 
 @dataclass
@@ -589,6 +614,7 @@ def validate_problem(prob: Problem, model=None) -> None:
                                             f"not {prob.options.homotopy_form!r}", "options")
     check_ipopt_options(prob.options.ipopt)
     check_weights(prob.options.weights)
+    _check_subtask_options(prob, model)
     bad = [g for g in prob.options.inertial_torque_groups if g not in TORQUE_GROUPS]
     if bad:
         raise ProblemError(INVALID_REQUEST, f"options.inertial_torque_groups: unknown group(s) {', '.join(map(repr, bad))} "

@@ -587,7 +587,8 @@ def segment_problem(prob: Problem, t0: float, t1: float, x_init, poses: dict, gr
     rest point starts with the object already moved: the schedule's contact points (world, at the
     object's pose when the grip began) are re-expressed at its pose at t0 for the phases that go on
     holding it, so the grip stays where it was on the object.  Keyframes of the segment's subtasks
-    after t1 stay in (they only anchor the warm start's nominal, see ``ProblemData``)."""
+    after t1 stay in (they only anchor the warm start's nominal, see ``ProblemData``).  A segment of
+    one subtask takes that subtask's ``Options.subtask_options``."""
     from dataclasses import replace
 
     from .model import rot_to_quat_xyzw
@@ -615,8 +616,11 @@ def segment_problem(prob: Problem, t0: float, t1: float, x_init, poses: dict, gr
     for o in prob.objects:
         pose = poses[o.id]
         objs.append(replace(o, position=tuple(pose[:3]), quat_xyzw=tuple(rot_to_quat_xyzw(rpy_to_rot(pose[3:])))))
+    options = prob.options
+    if len(subs) == 1 and (over := options.subtask_options.get(next(iter(subs)))):
+        options = options.replaced(**over)
     return Problem(objects=objs, keyframes=kfs, phases=phases, initial_configuration=tuple(x_init),
-                   placement_goals=goals, options=prob.options, name=f"{prob.name}[{t0:.1f}-{t1:.1f}]")
+                   placement_goals=goals, options=options, name=f"{prob.name}[{t0:.1f}-{t1:.1f}]")
 
 
 def _poses_at_end(win: Window, sd: ProblemData, Wm: np.ndarray, poses: dict) -> dict:
