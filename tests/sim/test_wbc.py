@@ -969,3 +969,15 @@ def test_grasp_moment_rows_give_the_carried_box_the_moment_its_orientation_needs
         assert max(residuals) < 0.25
     else:
         assert max(residuals) > 0.5  # measured 1.26 (1.27 in the elliptic-cone world)
+
+
+def test_carry_com_gains_apply_only_while_the_schedule_carries_an_object_free():
+    sim, tr = simulation("case_lift_box")
+    free = [ph for ph in tr.phases if ph.free_objects]
+    rest = [ph for ph in tr.phases if not ph.free_objects]
+    assert free and rest
+    wbc = WholeBodyController(sim.world, tr, WbcGains(carry_com_kp=30.0, carry_com_kd=11.0))
+    assert wbc.com_gains_at(0.5 * (free[0].start + free[0].end)) == (30.0, 11.0)
+    assert wbc.com_gains_at(0.5 * (rest[0].start + rest[0].end)) == (100.0, 20.0)
+    plain = WholeBodyController(sim.world, tr)
+    assert plain.com_gains_at(0.5 * (free[0].start + free[0].end)) == (100.0, 20.0)
