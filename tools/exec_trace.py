@@ -46,11 +46,31 @@ def _touching(model, data, body: int) -> list[str]:
     return sorted(out)
 
 
-def trace_line(ex, objects: list[str], cop: bool = False, grip: bool = False) -> str:
+def _object_contacts(ex) -> str:
+    """Each robot link's total contact force on each scene object (not the floor), largest first."""
+    import mujoco
+
+    m, d = ex.sim.model, ex.sim.data
+    pelvis = ex.wbc.pelvis
+    totals: dict = {}
+    f6 = np.zeros(6)
+    for ci in range(d.ncon):
+        c = d.contact[ci]
+        b1, b2 = int(m.geom_bodyid[c.geom1]), int(m.geom_bodyid[c.geom2])
+        for mine, other in ((b1, b2), (b2, b1)):
+            if m.body_rootid[mine] == m.body_rootid[pelvis] and other != 0 \
+                    and m.body_rootid[other] != m.body_rootid[pelvis]:
+                mujoco.mj_contactForce(m, d, ci, f6)
+                key = (m.body(mine).name, m.body(int(m.body_rootid[other])).name)
+                totals[key] = totals.get(key, 0.0) + float(np.linalg.norm(f6[:3]))
+    return " ".join(f"[{a} on {b} {f:.0f} N]" for (a, b), f in sorted(totals.items(), key=lambda kv: -kv[1]))
+
+
+def trace_line(ex, objects: list[str], cop: bool = False, grip: bool = False, contacts: bool = False) -> str:
     """One line of the trace at the execution's current time; ``cop``: each stance sole's centre of
     pressure as the controller's QP chose it beside the measured one; ``grip``: each contact of a
     hand's arm on the object the plan has it hold (link, point in the object body's frame, normal
-    and tangential force)."""
+    and tangential force); ``contacts``: every robot link's contact force on a scene object."""
     import mujoco
 
     from lomanip_sim.contact_forces import arm_contacts_on, centre_of_pressure_in_body
@@ -104,6 +124,8 @@ def trace_line(ex, objects: list[str], cop: bool = False, grip: bool = False) ->
         err = d.site_xpos[w.site_id[f]] - lerp(w.refs.site_p[f])
         parts.append(f"{f[0]}f {planned} f {np.linalg.norm(w.measured_forces[f]):4.0f}{cop_s} err {np.round(err, 3)}"
                      + "".join(f" on {name}" for name in _touching(m, d, w.foot_body[f])))
+    if contacts:
+        parts.append(f"contacts {_object_contacts(ex) or 'none'}")
     return " | ".join(parts)
 
 
@@ -139,6 +161,8 @@ def main() -> int:
     ap.add_argument("--gains", default="{}", help="WbcGains overrides as JSON")
     ap.add_argument("--cop", action="store_true", help="each stance sole's centre of pressure as the controller's "
                     "QP chose it, beside the measured one")
+    ap.add_argument("--contacts", action="store_true", help="every robot link's contact force on a scene object "
+                                                           "(not the floor), largest first")
     ap.add_argument("--grip", action="store_true", help="each contact of a hand's arm on the object it holds: "
                     "link, point in the object body's frame, normal and tangential force")
     ap.add_argument("--world", default=None, help="the plan in a changed world: scenario overrides "
@@ -217,7 +241,7 @@ def main() -> int:
         sim.step(steps)
         if ex.time >= next_t:
             next_t += args.every
-            print(trace_line(ex, movable, cop=args.cop, grip=args.grip), flush=True)
+            print(trace_line(ex, movable, cop=args.cop, grip=args.grip, contacts=args.contacts), flush=True)
     print(f"fell: {ex.fell} at t={ex.time:.2f} s" if ex.fell else f"no fall up to t={ex.time:.2f} s")
     return 0
 

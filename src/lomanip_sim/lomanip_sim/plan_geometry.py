@@ -52,9 +52,11 @@ def _limb_links(m: mujoco.MjModel) -> dict[str, set[int]]:
     return out
 
 
-def plan_penetrations(sim: Simulation, traj: Trajectory, every: float = 0.01, min_depth: float = 0.0) -> list[Penetration]:
-    """Deepest mesh overlap per (robot body, other body) over the plan sampled every ``every`` s,
-    deepest first; only overlaps deeper than ``min_depth`` (m).  ``sim``'s own state is untouched."""
+def plan_penetrations(sim: Simulation, traj: Trajectory, every: float = 0.01, min_depth: float = 0.0,
+                      start: float = 0.0, stop: float = np.inf) -> list[Penetration]:
+    """Deepest mesh overlap per (robot body, other body) over the plan from ``start`` to ``stop`` (s)
+    sampled every ``every`` s, deepest first; only overlaps deeper than ``min_depth`` (m).  ``sim``'s
+    own state is untouched."""
     m = sim.model
     d = mujoco.MjData(m)
     d.qpos[:] = sim.data.qpos
@@ -83,7 +85,7 @@ def plan_penetrations(sim: Simulation, traj: Trajectory, every: float = 0.01, mi
     t_next = -np.inf
     for i in range(traj.n):
         t = float(traj.t[i])
-        if t < t_next and i != traj.n - 1:
+        if t < start or t > stop or (t < t_next and i != traj.n - 1):
             continue
         t_next = t + every
         q = traj.qpos(i)
