@@ -47,7 +47,8 @@ def _touching(model, data, body: int) -> list[str]:
 
 
 def _object_contacts(ex) -> str:
-    """Each robot link's total contact force on each scene object (not the floor), largest first."""
+    """Each robot link's total contact force on each scene object (not the floor) and on another of
+    its links, largest first."""
     import mujoco
 
     m, d = ex.sim.model, ex.sim.data
@@ -57,9 +58,14 @@ def _object_contacts(ex) -> str:
     for ci in range(d.ncon):
         c = d.contact[ci]
         b1, b2 = int(m.geom_bodyid[c.geom1]), int(m.geom_bodyid[c.geom2])
+        robot = m.body_rootid[pelvis]
+        if m.body_rootid[b1] == robot and m.body_rootid[b2] == robot:  # the robot on itself
+            mujoco.mj_contactForce(m, d, ci, f6)
+            key = (m.body(b1).name, m.body(b2).name)
+            totals[key] = totals.get(key, 0.0) + float(np.linalg.norm(f6[:3]))
+            continue
         for mine, other in ((b1, b2), (b2, b1)):
-            if m.body_rootid[mine] == m.body_rootid[pelvis] and other != 0 \
-                    and m.body_rootid[other] != m.body_rootid[pelvis]:
+            if m.body_rootid[mine] == robot and other != 0 and m.body_rootid[other] != robot:
                 mujoco.mj_contactForce(m, d, ci, f6)
                 key = (m.body(mine).name, m.body(int(m.body_rootid[other])).name)
                 totals[key] = totals.get(key, 0.0) + float(np.linalg.norm(f6[:3]))
@@ -162,7 +168,7 @@ def main() -> int:
     ap.add_argument("--cop", action="store_true", help="each stance sole's centre of pressure as the controller's "
                     "QP chose it, beside the measured one")
     ap.add_argument("--contacts", action="store_true", help="every robot link's contact force on a scene object "
-                                                           "(not the floor), largest first")
+                                                           "(not the floor) or on another link, largest first")
     ap.add_argument("--grip", action="store_true", help="each contact of a hand's arm on the object it holds: "
                     "link, point in the object body's frame, normal and tangential force")
     ap.add_argument("--world", default=None, help="the plan in a changed world: scenario overrides "

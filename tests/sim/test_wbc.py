@@ -115,8 +115,10 @@ def test_free_hand_error_does_not_move_the_body():
     """A free hand off its plan is corrected by its own arm (``free_hand_body_frame``).
 
     The left arm is put 0.4 rad off the stand plan at the shoulder; the feet's horizontal force
-    (the body's momentum) must not change with the hand tasks on. Measured: 1.5 N with the hands
-    in the torso frame, 40 N with world-frame hands on the full Jacobian (the demo push's falls)."""
+    (the body's momentum) must not change with the hand tasks on. Measured at the weight 300 the
+    hand task had until session 49: 1.5 N with the hands in the torso frame, 38 N with world-frame
+    hands on the full Jacobian (the demo push's falls). At today's default 30 the hand task is too
+    weak for the comparison (10 N and 1 N: the posture task then does most of the arm's correction)."""
     sim, tr = simulation("case_stand")
     j = list(G1_JOINT_NAMES).index("left_shoulder_pitch_joint")
 
@@ -133,8 +135,8 @@ def test_free_hand_error_does_not_move_the_body():
         return sum(wbc.last_forces[f] for f in ("left_foot", "right_foot"))[:2]
 
     off = feet_force(w_free_hand=0.0, w_free_hand_ori=0.0)
-    assert np.linalg.norm(feet_force() - off) < 5.0
-    assert np.linalg.norm(feet_force(free_hand_body_frame=False) - off) > 20.0
+    assert np.linalg.norm(feet_force(w_free_hand=300.0) - off) < 5.0
+    assert np.linalg.norm(feet_force(w_free_hand=300.0, free_hand_body_frame=False) - off) > 20.0
 
 
 def test_references_and_helpers():
