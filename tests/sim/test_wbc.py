@@ -981,5 +981,5 @@ def test_carry_com_gains_apply_only_while_the_schedule_carries_an_object_free():
     wbc = WholeBodyController(sim.world, tr, WbcGains(carry_com_kp=30.0, carry_com_kd=11.0))
     assert wbc.com_gains_at(0.5 * (free[0].start + free[0].end)) == (30.0, 11.0)
     assert wbc.com_gains_at(0.5 * (rest[0].start + rest[0].end)) == (100.0, 20.0)
-    plain = WholeBodyController(sim.world, tr)
-    assert plain.com_gains_at(0.5 * (free[0].start + free[0].end)) == (100.0, 20.0)
+    off = WholeBodyController(sim.world, tr, WbcGains(carry_com_kp=0.0, carry_com_kd=0.0))
+    assert off.com_gains_at(0.5 * (free[0].start + free[0].end)) == (100.0, 20.0)
