@@ -49,26 +49,20 @@ def _touching(model, data, body: int) -> list[str]:
 def _object_contacts(ex) -> str:
     """Each robot link's total contact force on each scene object (not the floor) and on another of
     its links, largest first."""
-    import mujoco
+    from lomanip_sim.contact_forces import contact_force_totals
 
     m, d = ex.sim.model, ex.sim.data
-    pelvis = ex.wbc.pelvis
-    totals: dict = {}
-    f6 = np.zeros(6)
-    for ci in range(d.ncon):
-        c = d.contact[ci]
-        b1, b2 = int(m.geom_bodyid[c.geom1]), int(m.geom_bodyid[c.geom2])
-        robot = m.body_rootid[pelvis]
+    robot = m.body_rootid[ex.wbc.pelvis]
+
+    def key(b1: int, b2: int):
         if m.body_rootid[b1] == robot and m.body_rootid[b2] == robot:  # the robot on itself
-            mujoco.mj_contactForce(m, d, ci, f6)
-            key = (m.body(b1).name, m.body(b2).name)
-            totals[key] = totals.get(key, 0.0) + float(np.linalg.norm(f6[:3]))
-            continue
+            return m.body(b1).name, m.body(b2).name
         for mine, other in ((b1, b2), (b2, b1)):
             if m.body_rootid[mine] == robot and other != 0 and m.body_rootid[other] != robot:
-                mujoco.mj_contactForce(m, d, ci, f6)
-                key = (m.body(mine).name, m.body(int(m.body_rootid[other])).name)
-                totals[key] = totals.get(key, 0.0) + float(np.linalg.norm(f6[:3]))
+                return m.body(mine).name, m.body(int(m.body_rootid[other])).name
+        return None
+
+    totals = {k: float(np.linalg.norm(f)) for k, f in contact_force_totals(m, d, key).items()}
     return " ".join(f"[{a} on {b} {f:.0f} N]" for (a, b), f in sorted(totals.items(), key=lambda kv: -kv[1]))
 
 

@@ -121,3 +121,19 @@ def arm_contacts_on(model: mujoco.MjModel, data: mujoco.MjData, side: str,
         mujoco.mj_contactForce(model, data, i, f6)
         out.append((links[arm], R.T @ (c.pos - p), float(f6[0]), float(np.hypot(f6[1], f6[2]))))
     return out
+
+
+def contact_force_totals(model: mujoco.MjModel, data: mujoco.MjData, key) -> dict:
+    """Net contact force (world frame, N) per key over the current contacts: ``key(body1, body2)``
+    names what a contact between the two bodies counts for, or None to leave it out. Read after
+    mj_step2 (after mj_step1 the contact list is new and the forces are the last step's)."""
+    totals: dict = {}
+    f6 = np.zeros(6)
+    for ci in range(data.ncon):
+        c = data.contact[ci]
+        k = key(int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2]))
+        if k is None:
+            continue
+        mujoco.mj_contactForce(model, data, ci, f6)
+        totals[k] = totals.get(k, np.zeros(3)) + c.frame.reshape(3, 3).T @ f6[:3]
+    return totals

@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from . import frames
+from .contact_forces import contact_force_totals
 from .robot_model import FOOT_BODIES, FOOT_SITES, HAND_BODIES, TORSO_BODY
 from .standing import StandingController
 from .task_success import evaluate
@@ -239,20 +240,15 @@ class Execution:
 
     def _unplanned_contacts(self, data: mujoco.MjData) -> None:
         """Track the largest total contact force on one robot link the plan has no contact for."""
-        m = self.sim.model
-        totals: dict = {}
-        f6 = np.zeros(6)
-        for ci in range(data.ncon):
-            c = data.contact[ci]
-            b1, b2 = int(m.geom_bodyid[c.geom1]), int(m.geom_bodyid[c.geom2])
+        m, mine_ = self.sim.model, self._unplanned_bodies
+
+        def key(b1: int, b2: int):
             for mine, other in ((b1, b2), (b2, b1)):
-                if mine in self._unplanned_bodies and other not in self._unplanned_bodies \
-                        and m.body_rootid[other] != m.body_rootid[mine]:
-                    mujoco.mj_contactForce(m, data, ci, f6)
-                    f = c.frame.reshape(3, 3).T @ f6[:3]
-                    key = (mine, m.body_rootid[other])
-                    totals[key] = totals.get(key, np.zeros(3)) + f
-        for (mine, other), f in totals.items():
+                if mine in mine_ and other not in mine_ and m.body_rootid[other] != m.body_rootid[mine]:
+                    return mine, int(m.body_rootid[other])
+            return None
+
+        for (mine, other), f in contact_force_totals(m, data, key).items():
             n = float(np.linalg.norm(f))
             if n > self._max_unplanned[0]:
                 what = "floor" if other == 0 else m.body(int(other)).name
