@@ -70,7 +70,7 @@ def trace_line(ex, objects: list[str], cop: bool = False, grip: bool = False, co
     """One line of the trace at the execution's current time; ``cop``: each stance sole's centre of
     pressure as the controller's QP chose it beside the measured one; ``grip``: each contact of a
     hand's arm on the object the plan has it hold (link, point in the object body's frame, normal
-    and tangential force); ``contacts``: every robot link's contact force on a scene object."""
+    and tangential force); ``contacts``: every robot link's contact force on a scene object or another link."""
     import mujoco
 
     from lomanip_sim.contact_forces import arm_contacts_on, centre_of_pressure_in_body

@@ -240,11 +240,11 @@ class Execution:
 
     def _unplanned_contacts(self, data: mujoco.MjData) -> None:
         """Track the largest total contact force on one robot link the plan has no contact for."""
-        m, mine_ = self.sim.model, self._unplanned_bodies
+        m, watched = self.sim.model, self._unplanned_bodies
 
         def key(b1: int, b2: int):
             for mine, other in ((b1, b2), (b2, b1)):
-                if mine in mine_ and other not in mine_ and m.body_rootid[other] != m.body_rootid[mine]:
+                if mine in watched and other not in watched and m.body_rootid[other] != m.body_rootid[mine]:
                     return mine, int(m.body_rootid[other])
             return None
 

@@ -21,9 +21,7 @@ import numpy as np
 from .contact_forces import ARM_LINKS
 from .robot_model import FOOT_BODIES, HAND_BODIES, PELVIS_BODY
 from .simulator import Simulation
-from .trajectory import Trajectory
-
-FLOOR = "floor"
+from .trajectory import FLOOR, Trajectory
 
 
 @dataclass(frozen=True)

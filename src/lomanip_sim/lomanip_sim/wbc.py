@@ -1258,11 +1258,12 @@ class WholeBodyController:
     def com_gains_at(self, t: float) -> tuple[float, float]:
         """(kp, kd) of the CoM task at trajectory time t: the carry gains where the schedule has an
         object carried free, else com_kp / com_kd."""
-        g, tr = self.g, self.traj
-        if g.carry_com_kp > 0 or g.carry_com_kd > 0:
-            ph = tr.phase_at(min(t, tr.duration))
-            if ph is not None and ph.free_objects:
-                return g.carry_com_kp or g.com_kp, g.carry_com_kd or g.com_kd
+        return self._com_gains(self.traj.phase_at(min(t, self.traj.duration)))
+
+    def _com_gains(self, phase) -> tuple[float, float]:
+        g = self.g
+        if (g.carry_com_kp > 0 or g.carry_com_kd > 0) and phase is not None and phase.free_objects:
+            return g.carry_com_kp or g.com_kp, g.carry_com_kd or g.com_kd
         return g.com_kp, g.com_kd
 
     def trajectory_time(self, data: mujoco.MjData) -> float:
@@ -1420,7 +1421,7 @@ class WholeBodyController:
                 a = min((t - tr.duration) / g.hold_recentre_time, 1.0)
                 com_ref = com_ref.copy()
                 com_ref[:2] += a * (mid[:2] - com_ref[:2])
-        kp, kd = self.com_gains_at(t)
+        kp, kd = self._com_gains(phase)
         b = dlerp(R_.com_a) + kp * (com_ref - com) + kd * (dlerp(R_.com_v) - Jc @ v)
         task(Jc, b, g.w_com)
         # --- centroidal angular momentum (A_dot v by a finite difference over the control period)
