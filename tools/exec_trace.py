@@ -66,7 +66,8 @@ def _object_contacts(ex) -> str:
     return " ".join(f"[{a} on {b} {f:.0f} N]" for (a, b), f in sorted(totals.items(), key=lambda kv: -kv[1]))
 
 
-def trace_line(ex, objects: list[str], cop: bool = False, grip: bool = False, contacts: bool = False) -> str:
+def trace_line(ex, objects: list[str], cop: bool = False, grip: bool = False, contacts: bool = False,
+               joints: tuple[str, ...] = ()) -> str:
     """One line of the trace at the execution's current time; ``cop``: each stance sole's centre of
     pressure as the controller's QP chose it beside the measured one; ``grip``: each contact of a
     hand's arm on the object the plan has it hold (link, point in the object body's frame, normal
@@ -124,6 +125,17 @@ def trace_line(ex, objects: list[str], cop: bool = False, grip: bool = False, co
         err = d.site_xpos[w.site_id[f]] - lerp(w.refs.site_p[f])
         parts.append(f"{f[0]}f {planned} f {np.linalg.norm(w.measured_forces[f]):4.0f}{cop_s} err {np.round(err, 3)}"
                      + "".join(f" on {name}" for name in _touching(m, d, w.foot_body[f])))
+    if joints:  # measured / planned angle (rad) and the joint's range
+        from lomanip_sim.robot_model import G1_JOINT_NAMES
+
+        q_ref = lerp(tr.q)
+        for name in joints:
+            j = G1_JOINT_NAMES.index(name)
+            jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+            lo, hi = m.jnt_range[jid]
+            tau, lim = w._last_tau[j], w.limits[j]
+            parts.append(f"{name.removesuffix('_joint')} {d.qpos[m.jnt_qposadr[jid]]:+.3f}/{q_ref[j]:+.3f} [{lo:+.2f},{hi:+.2f}]"
+                         f" tau {tau:+5.1f}/{lim:.0f}")
     if contacts:
         parts.append(f"contacts {_object_contacts(ex) or 'none'}")
     return " | ".join(parts)
@@ -165,9 +177,18 @@ def main() -> int:
                                                            "(not the floor) or on another link, largest first")
     ap.add_argument("--grip", action="store_true", help="each contact of a hand's arm on the object it holds: "
                     "link, point in the object body's frame, normal and tangential force")
+    ap.add_argument("--joints", default="", help="comma-separated G1 joint names: each one's measured and planned "
+                    "angle, its range (rad) and the controller's torque against its limit (N m)")
     ap.add_argument("--world", default=None, help="the plan in a changed world: scenario overrides "
                     "KEY=VALUE[,KEY=VALUE] as tools/bench_exec.py --world (the plan unchanged)")
     args = ap.parse_args()
+    from lomanip_sim.robot_model import G1_JOINT_NAMES
+
+    joints = tuple(j.strip() for j in args.joints.split(",") if j.strip())
+    unknown = [j for j in joints if j not in G1_JOINT_NAMES]
+    if unknown:
+        print(f"exec_trace: not G1 joints: {', '.join(unknown)}", file=sys.stderr)
+        return 2
 
     import bench_exec
     from lomanip_sim.execution import Execution
@@ -241,7 +262,7 @@ def main() -> int:
         sim.step(steps)
         if ex.time >= next_t:
             next_t += args.every
-            print(trace_line(ex, movable, cop=args.cop, grip=args.grip, contacts=args.contacts), flush=True)
+            print(trace_line(ex, movable, cop=args.cop, grip=args.grip, contacts=args.contacts, joints=joints), flush=True)
     print(f"fell: {ex.fell} at t={ex.time:.2f} s" if ex.fell else f"no fall up to t={ex.time:.2f} s")
     return 0
 

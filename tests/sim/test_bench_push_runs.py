@@ -49,3 +49,16 @@ def test_exec_trace_names_a_run_folder_s_missing_result(tmp_path):
     out = subprocess.run([sys.executable, str(tool), str(run)], capture_output=True, text=True, timeout=120)
     assert out.returncode == 2
     assert "to_result_1.npz" in out.stderr and len(out.stderr.strip().splitlines()) == 1
+
+
+def test_exec_trace_refuses_unknown_joint_names(tmp_path):
+    """tools/exec_trace.py --joints: a name that is no G1 joint is one line and exit 2, before loading anything."""
+    import subprocess
+    import sys
+
+    tool = Path(__file__).resolve().parents[2] / "tools" / "exec_trace.py"
+    out = subprocess.run([sys.executable, str(tool), str(tmp_path / "plan.npz"), "--joints", "right_knee_joint,elbow"],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2
+    assert "elbow" in out.stderr and "right_knee_joint" not in out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1

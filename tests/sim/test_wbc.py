@@ -983,3 +983,62 @@ def test_carry_com_gains_apply_only_while_the_schedule_carries_an_object_free():
     assert wbc.com_gains_at(0.5 * (rest[0].start + rest[0].end)) == (100.0, 20.0)
     off = WholeBodyController(sim.world, tr, WbcGains(carry_com_kp=0.0, carry_com_kd=0.0))
     assert off.com_gains_at(0.5 * (free[0].start + free[0].end)) == (100.0, 20.0)
+
+
+def test_feet_follow_weights_anticipate_the_lift_off_and_shift_onto_the_stance_foot():
+    """``feet_follow``: the weights are the plan's vertical force on each foot averaged over the
+    look-ahead, so the lifting foot's weight falls before its lift-off; the target is the stance
+    feet's placement error (a robot moved sideways as a whole: exactly that move)."""
+    sim, tr = simulation("case_one_step")
+    wbc = WholeBodyController(sim.world, tr, WbcGains(feet_follow=1.0))
+    single = next(ph for ph in tr.phases if len([f for f in ph.contacts if f.endswith("foot")]) == 1)
+    (stance,) = [f for f in single.contacts if f.endswith("foot")]
+    (swing,) = [f for f in ("left_foot", "right_foot") if f != stance]
+    share = wbc._feet_share
+    before = int(np.searchsorted(tr.t, single.start - 0.5 * wbc.g.feet_follow_lookahead))
+    assert share[swing][before] < tr.forces[swing][before, 2] - 1.0  # its coming lift-off counts already
+    mid = int(np.searchsorted(tr.t, 0.5 * (single.start + single.end)))
+    assert share[swing][mid] < 1e-6 < share[stance][mid]
+
+    d = mujoco.MjData(sim.model)
+    d.qpos[:] = sim.data.qpos
+    i, s = tr.index_at(float(tr.t[mid]))
+    d.qpos[wbc.bq : wbc.bq + 7 + NJ] = tr.qpos(i)
+    d.qpos[wbc.bq : wbc.bq + 2] += [0.03, -0.02]
+    mujoco.mj_kinematics(sim.model, d)
+    target = wbc._feet_follow_target(d, single.contacts, i, 0.0)
+    assert np.allclose(target, [0.03, -0.02], atol=1e-6)
+    assert wbc._feet_follow_target(d, {}, i, 0.0) is None  # no stance foot: no target
+
+
+def test_feet_follow_keeps_the_com_over_a_stance_foot_that_stands_off_its_planned_place():
+    """The stance foot's planned place and the planned CoM moved 2.5 cm together (as if the real
+    foot stood 2.5 cm off the plan): executed with ``feet_follow`` the shift settles on the foot's
+    error and the CoM moves as on the unmoved plan; with the default (0) the shift stays zero and
+    the CoM is pulled towards the moved plan."""
+    offset = np.array([0.015, -0.02])
+    com = {}
+    for follow, moved in ((0.0, False), (1.0, True), (0.0, True)):
+        sim, tr = simulation("case_one_step")
+        wbc = WholeBodyController(sim.world, tr, WbcGains(feet_follow=follow))
+        single = next(ph for ph in tr.phases if len([f for f in ph.contacts if f.endswith("foot")]) == 1)
+        (stance,) = [f for f in single.contacts if f.endswith("foot")]
+        assert all(stance in ph.contacts for ph in tr.phases)  # it never swings: only feet_follow reads its place
+        if moved:
+            wbc.refs.site_p[stance][:, :2] += offset
+            wbc.refs.com[:, :2] += offset
+        sim.set_controller(wbc)
+        sim.run_for(single.start + 0.6 * (single.end - single.start))
+        assert not sim.has_fallen()
+        com[follow, moved] = sim.data.subtree_com[wbc.pelvis][:2].copy()
+        t = wbc.trajectory_time(sim.data)
+        i, s = tr.index_at(t)
+        planned = wbc.refs.site_p[stance][i] + s * (wbc.refs.site_p[stance][i + 1] - wbc.refs.site_p[stance][i])
+        error = sim.data.site_xpos[wbc.site_id[stance]][:2] - planned[:2]
+        if follow:
+            assert np.linalg.norm(error + offset) < 5e-3
+            assert np.linalg.norm(wbc._feet_shift - error) < 2e-3
+        else:
+            assert np.all(wbc._feet_shift == 0.0)
+    assert np.linalg.norm(com[1.0, True] - com[0.0, False]) < 0.004
+    assert np.linalg.norm(com[0.0, True] - com[0.0, False]) > 0.01

@@ -172,6 +172,19 @@ class WbcGains:
     # demo-push plans executed. (The clamp to the centre line is what executes them: to the sole's
     # edges 5 of 12, none across in a single stance 5 of 12; docs/execution.md, session 11)
     com_clamp_time: float = 0.1
+    # The CoM reference follows where the stance feet really are: it shifts horizontally by the
+    # stance soles' placement errors (measured minus planned), weighted by the plan's vertical force
+    # on each averaged over the next ``feet_follow_lookahead`` s, so before a foot lifts the shift is
+    # already on the one that will stand alone. Why: in S1's step onto the box the left foot stood
+    # 3.6 cm outside its planned place; the plan's CoM over the planned sole was 3.6 cm inside the
+    # real one, the clamp above moves the reference only after lift-off, and the centre of pressure
+    # went to the sole's inner edge. Off by default (docs/execution.md, session 50): with it S1's two
+    # plans of session 48/50 pass the carry in 10 of 10 model-error worlds (8 of 10 without) and then
+    # fall in the step-up, but S2 nominal executes to success in 1 of 7 worlds (5 of 7 without).
+    # Shifting the pelvis reference too made both scenarios fall in their carry. 0: off, 1: full shift
+    feet_follow: float = 0.0
+    feet_follow_lookahead: float = 0.2  # s
+    feet_follow_time: float = 0.05  # s, time constant of the shift (first order)
     # grasp force optimisation on a carried object held by two or more hands: the QP chooses the hands'
     # forces, their sum fixed to the net force fed forward (what the object's motion needs) and each
     # inside a friction pyramid of ``mu_grasp`` about its face's normal (at least ``grasp_min_normal``
@@ -550,6 +563,8 @@ class WholeBodyController:
         self._admittance: dict = {}  # hand -> [contact, normal shift (m)] while pushing a floor object
         self._push_force: dict = {}  # hand -> (normal, desired normal force on the robot) this step
         self._com_shift = np.zeros(2)  # the CoM reference's clamp shift (com_margin, com_clamp_time)
+        self._feet_shift = np.zeros(2)  # the CoM reference's shift onto the real stance feet (feet_follow)
+        self._feet_share = self._planned_feet_share()
         root = int(m.body_rootid[self.pelvis])
         self._robot_bodies = [b for b in range(1, m.nbody) if int(m.body_rootid[b]) == root and m.body_mass[b] > 0]
         self._angmom_prev: tuple[float, np.ndarray] | None = None  # (time, A_L) of the last step
@@ -646,6 +661,34 @@ class WholeBodyController:
                      qdd=grad(tr.qd),
                      angmom=tr.angular_momentum,
                      angmom_rate=grad(tr.angular_momentum) if tr.angular_momentum is not None else None)  # fmt: skip
+
+    def _planned_feet_share(self) -> dict[str, np.ndarray]:
+        """foot -> (N,) the plan's vertical force on it averaged over the next feet_follow_lookahead s
+        (forces on the grid, trapezoid integral); the feet_follow weights."""
+        tr, out = self.traj, {}
+        look = max(self.g.feet_follow_lookahead, 1e-6)
+        for f in FEET:
+            fz = tr.forces[f][:, 2] if f in tr.forces else np.zeros(tr.n)
+            fz = np.maximum(fz, 0.0)
+            cum = np.concatenate([[0.0], np.cumsum(0.5 * (fz[1:] + fz[:-1]) * np.diff(tr.t))])
+            end = np.minimum(tr.t + look, tr.t[-1])
+            span = np.maximum(end - tr.t, 1e-9)
+            ahead = (np.interp(end, tr.t, cum) - cum) / span
+            out[f] = np.where(end > tr.t, ahead, fz)
+        return out
+
+    def _feet_follow_target(self, data: mujoco.MjData, contacts, i: int, s: float) -> np.ndarray | None:
+        """(2,) the weighted placement error of the stance feet in ``contacts``, None without one."""
+        R_, num, den = self.refs, np.zeros(2), 0.0
+        for f in FEET:
+            if f not in contacts:
+                continue
+            a = self._feet_share[f]
+            w = a[i] + s * (a[i + 1] - a[i])
+            p = R_.site_p[f][i] + s * (R_.site_p[f][i + 1] - R_.site_p[f][i])
+            num += w * (data.site_xpos[self.site_id[f]][:2] - p[:2])
+            den += w
+        return num / den if den > 1e-6 else None
 
     def _object_net_forces(self) -> dict:
         """object -> (N,3) force the grasp must give it for its planned motion, m (a + g) (dense plan,
@@ -1068,13 +1111,13 @@ class WholeBodyController:
                          s: float) -> np.ndarray:
         """(3,) horizontal shift of a swing foot's target: ``step_adjust_gain`` times the capture
         point's error (measured CoM ``com`` + velocity ``com_v`` / omega against the plan's, the CoM
-        clamp's shift included), faded in over the swing and bounded by ``step_adjust_max``."""
+        clamp's and feet_follow's shifts included), faded in over the swing and bounded by ``step_adjust_max``."""
         g, R_ = self.g, self.refs
         c_ref = R_.com[i] + s * (R_.com[i + 1] - R_.com[i])
         v_ref = R_.com_v[i] + s * (R_.com_v[i + 1] - R_.com_v[i])
         sole_z = min(float(data.site_xpos[self.site_id[f]][2]) for f in FEET) - FOOT_SOLE_OFFSET
         omega = np.sqrt(-self.model.opt.gravity[2] / max(com[2] - sole_z, 0.3))
-        err = (com[:2] - c_ref[:2] - self._com_shift) + (com_v[:2] - v_ref[:2]) / omega
+        err = (com[:2] - c_ref[:2] - self._com_shift - self._feet_shift) + (com_v[:2] - v_ref[:2]) / omega
         u = np.clip((t - phase.start) / max(phase.end - phase.start, 1e-3), 0.0, 1.0)
         shift = g.step_adjust_gain * float(smoothstep(u)) * err
         n = np.linalg.norm(shift)
@@ -1246,6 +1289,7 @@ class WholeBodyController:
         self._swing_start.clear()
         self._admittance.clear()
         self._com_shift[:] = 0.0
+        self._feet_shift[:] = 0.0
         self._angmom_prev = None
         self._touch_key = None
         self._qp_working_set = None
@@ -1288,6 +1332,11 @@ class WholeBodyController:
         planned = phase.contacts if phase is not None else {f: None for f in FEET}
         contacts = self._release_hands(data, planned, t, i, s) if g.hand_release else planned
         released_w = {limb: self._body_weight(limb, t) for limb in HANDS}  # 0..1 per hand, this step
+        if g.feet_follow > 0 and not after_end:
+            target = self._feet_follow_target(data, contacts, i, s)
+            if target is not None:
+                a = min(m.opt.timestep / g.feet_follow_time, 1.0) if g.feet_follow_time > 0 else 1.0
+                self._feet_shift += a * (g.feet_follow * target - self._feet_shift)
         body_frame_hands = False  # some free hand tracked in the torso frame this step
         dofs = self.dofs
         v = data.qvel[dofs]
@@ -1401,6 +1450,9 @@ class WholeBodyController:
 
         # --- CoM (Jc, com from the top)
         com_ref = lerp(R_.com)
+        if np.any(self._feet_shift != 0.0):  # onto the real stance feet (feet_follow)
+            com_ref = com_ref.copy()
+            com_ref[:2] += self._feet_shift
         feet = [lf for lf in FEET if lf in corner_J]
         box = self._support_box(data, feet) if g.com_margin > 0 else None
         shift = np.zeros(2)
