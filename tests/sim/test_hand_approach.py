@@ -71,3 +71,33 @@ def test_lowering_through_the_bar_after_the_release_is_lifted_out_from_the_relea
     assert np.all(lift[t <= end] == 0.0)  # nothing while the contact lasts: the hand leaves along the normal
     assert np.all(lift[t > end + 0.8 + 0.4] == 0.0)  # last checked sample + the kernel's half-width
     assert np.abs(np.diff(lift)).max() < 0.01  # smooth: under 1 m/s on the 10 ms grid
+
+
+class _TwoSlabs:
+    """A probe stand-in: along x, object A fills [0, 0.1] m and object B [0.115, 0.4] m; the signed
+    clearance of the hand's point is its distance to the nearer slab (negative inside one)."""
+
+    @staticmethod
+    def clearance(p, R, i=None):
+        x = float(p[0])
+        if x <= 0.1:
+            return 1.0, -min(x, 0.1 - x) if x >= 0.0 else -x
+        if x < 0.115:
+            return 1.0, min(x - 0.1, 0.115 - x)
+        return 1.0, -min(x - 0.115, 0.4 - x) if x <= 0.4 else x - 0.4
+
+
+def test_where_no_lift_is_clear_the_least_bad_one_is_taken_instead_of_the_largest():
+    """Lifting out of A along +x drives the hand into B before any lift keeps the 1 cm margin: the
+    largest lift (25 cm) lands deep in B; ``least_bad`` stops in the 1.5 cm gap between them."""
+    t = np.round(np.arange(0.0, 2.0, 0.01), 6)
+    pos = np.tile([0.05, 0.0, 0.0], (len(t), 1))
+    rot = np.repeat(np.eye(3)[None], len(t), 0)
+    normals = np.tile([1.0, 0.0, 0.0], (len(t), 1))
+    kw = dict(window=0.8, margin=0.01, spread=0.2, last=0.1, taper=0.1)
+    mid = int(np.searchsorted(t, 1.5))  # in the window before a contact at 2.0 s
+    largest = approach_lift(t, pos, rot, normals, 2.0, _TwoSlabs, **kw)
+    least = approach_lift(t, pos, rot, normals, 2.0, _TwoSlabs, least_bad=True, **kw)
+    assert abs(largest[mid] - 0.25) < 1e-9
+    assert abs(least[mid] - 0.06) < 1e-9  # x = 0.11 m: 1 cm from A, 0.5 cm from B
+    assert _TwoSlabs.clearance(pos[mid] + least[mid] * normals[mid], None)[1] > 0.0

@@ -44,7 +44,8 @@ def _envelope(t: np.ndarray, need: np.ndarray, spread: float, start: float, post
 
 def approach_lift(t: np.ndarray, pos: np.ndarray, rot: np.ndarray, normals: np.ndarray, start: float,
                   probe: HandBoxProbe, window: float = 0.8, margin: float = 0.01, spread: float = 0.2, last: float = 0.1,
-                  taper: float = 0.1, step: float = 0.01, max_lift: float = 0.25, post: float = 0.0) -> np.ndarray:  # fmt: skip
+                  taper: float = 0.1, step: float = 0.01, max_lift: float = 0.25, post: float = 0.0,
+                  least_bad: bool = False) -> np.ndarray:  # fmt: skip
     """(N,) lift (m) along ``normals`` (N,3) for the approach to a contact starting at ``start``.
 
     Samples in [start - window, start - last) get the least lift (``step`` grid, up to ``max_lift``)
@@ -52,14 +53,26 @@ def approach_lift(t: np.ndarray, pos: np.ndarray, rot: np.ndarray, normals: np.n
     clearance there, when smaller); the result is the max over samples of lift x a smoothstep
     kernel of half-width ``spread`` s up to the last lifted sample, then a smoothstep down to 0 at
     ``post`` s after the contact starts (at least ``taper`` s long): a hand lands softly, along the
-    normal, where the plan's force is still small.
+    normal, where the plan's force is still small. Where no lift up to ``max_lift`` is clear, a sample
+    gets ``max_lift``, or with ``least_bad`` the lift (0 included) whose clearance falls least short:
+    S2's hands, letting go of the box on the trolley's deck, found no clear lift along the
+    box's faces, and the full 25 cm drove the right wrist into the trolley's post.
     """
     idx = np.flatnonzero((t >= start - window) & (t < start - last))
     need_s = {i: min(probe.clearance(pos[i], rot[i], i)[0], margin) - 1e-4 for i in idx}
 
-    def ok(i: int, e: float) -> bool:
+    def score(i: int, e: float) -> float:  # >= 0: clear
         s, m = probe.clearance(pos[i] + e * normals[i], rot[i], i)
-        return m >= margin and s >= need_s[i]
+        return min(m - margin, s - need_s[i])
+
+    def ok(i: int, e: float) -> bool:
+        return score(i, e) >= 0.0
+
+    def fallback(i: int) -> float:
+        if not least_bad:
+            return max_lift
+        lifts = np.arange(0.0, max_lift + 1e-9, step)
+        return float(lifts[int(np.argmax([score(i, e) for e in lifts]))])
 
     need = np.zeros(len(t))
     lift = np.zeros(len(t))
@@ -68,7 +81,8 @@ def approach_lift(t: np.ndarray, pos: np.ndarray, rot: np.ndarray, normals: np.n
         if not bad:
             break
         for i in bad:
-            need[i] = next((e for e in np.arange(lift[i] + step, max_lift + 1e-9, step) if ok(i, e)), max_lift)
+            found = next((e for e in np.arange(lift[i] + step, max_lift + 1e-9, step) if ok(i, e)), None)
+            need[i] = found if found is not None else fallback(i)
         lift = _envelope(t, need, spread, start, post, taper)
     return lift
 

@@ -295,6 +295,13 @@ class WbcGains:
     # bar 0.1 s after the window, at 5.7 s, and shoved the trolley from 6 cm behind its plan to 20 cm
     # ahead (with 1.5: the same at 6.4 s; with 2.5 it ends 4.6 cm behind: session 33)
     hand_retreat_window: float = 3.0
+    # where no retreat lift along the released contact's normal is clear: the lift whose clearance
+    # falls least short (0 included), not the largest. Why: letting go of the box on the trolley's
+    # deck, S2's hands found no clear lift along the box's faces, the full 25 cm drove the right
+    # wrist into the trolley's post (44-115 N at 7.96-8.04 s) and rolled the trolley 9.6 cm back;
+    # the push then caught up and the trolley ended 12 cm past its goal (docs/execution.md, session 50).
+    # The demo push's 8 saved layouts in 8 worlds execute as before (60 of 64)
+    hand_retreat_least_bad: bool = True
     hand_retreat_rise: float = 0.3  # s from the release over which the lift rises (from 0: none before it)
     # N: the release is the contact's end or, earlier, the last time the plan's hand force is above
     # this (the demo push's plan stops pushing at 4.2 s, 0.6 s before its contact ends, and lowers
@@ -640,7 +647,8 @@ class WholeBodyController:
                         window = max(min(c_end + self.g.hand_retreat_window, nxt), c_end) - end
                         lift = retreat_lift(t, sp[limb], sR[limb], normals, end, probe, window=window,
                                             margin=self.g.hand_retreat_margin, spread=self.g.hand_approach_spread,
-                                            last=self.g.hand_retreat_rise, taper=self.g.hand_retreat_rise)  # fmt: skip
+                                            last=self.g.hand_retreat_rise, taper=self.g.hand_retreat_rise,
+                                            least_bad=self.g.hand_retreat_least_bad)  # fmt: skip
                         sp[limb] = sp[limb] + lift[:, None] * normals
                         self._arm_only[limb] |= lift > 1e-9  # as under the grasp offsets: the arm moves the hand
                         self.retreat_lifts.append((limb, end, float(lift.max())))
