@@ -11,11 +11,14 @@ a centre of pressure on that edge means the foot is about to roll). docs/executi
 reads S2's carry with it. ``--cop`` adds the centre of pressure the controller's QP chose for each
 stance sole (is a sole on its edge asked for, or pushed there?); ``--grip`` adds every contact of
 a hand's arm on the object the plan has it hold (where on the box each hand presses, and how near
-to sliding: tangential over normal force against the friction coefficient).
+to sliding: tangential over normal force against the friction coefficient); ``--joints`` adds the
+named joints' measured and planned angles, ranges and torques against their limits (a leg at its
+torque limit in S1's step onto the box, docs/execution.md session 50).
 
     .venv/bin/python tools/exec_trace.py runs/bench_to/s2_trolley_mass2.5_yaw0_all.npz --start 4 --stop 6.5
     .venv/bin/python tools/exec_trace.py <npz> --gains '{"grasp_squeeze_scale": 2.0}'
     .venv/bin/python tools/exec_trace.py <npz> --start 4.8 --stop 5.2 --every 0.04 --cop --grip
+    .venv/bin/python tools/exec_trace.py <npz> --start 13.8 --stop 14.5 --joints right_hip_pitch_joint,right_knee_joint
     .venv/bin/python tools/exec_trace.py runs/bench_push/base --perturb closer   # a tools/bench_push.py case
     .venv/bin/python tools/exec_trace.py runs/s2_pick_carry/s2_trolley.npz        # a tools/plan_structure.py --solve
     .venv/bin/python tools/exec_trace.py runs/20261206-041500                     # a `make demo` / `lomanip plan` run
@@ -125,7 +128,7 @@ def trace_line(ex, objects: list[str], cop: bool = False, grip: bool = False, co
         err = d.site_xpos[w.site_id[f]] - lerp(w.refs.site_p[f])
         parts.append(f"{f[0]}f {planned} f {np.linalg.norm(w.measured_forces[f]):4.0f}{cop_s} err {np.round(err, 3)}"
                      + "".join(f" on {name}" for name in _touching(m, d, w.foot_body[f])))
-    if joints:  # measured / planned angle (rad) and the joint's range
+    if joints:  # measured / planned angle (rad), the joint's range, the controller's torque / its limit (N m)
         from lomanip_sim.robot_model import G1_JOINT_NAMES
 
         q_ref = lerp(tr.q)
