@@ -95,3 +95,21 @@ def test_the_joint_limit_check_reports_the_coupling(g1):
     v, (name, t) = joint_limit_violation(g1, res)
     assert name == "left hip roll coupling" and t == 0.2
     assert v == pytest.approx(-hip_roll_clearance(res.x_knots[1, 6:])[0])
+
+
+def test_hip_margin_moves_the_coupling_rows_inside_the_bound(g1):
+    """``weights: {hip_margin: m}`` (rad) asks the hip roll to stay m inside the bound: the rows of
+    the same state are lower by exactly m (0, the default, is the bound itself)."""
+    import dataclasses
+
+    prob = load_problem("s1_basket", model=g1)
+    rows = {}
+    for margin in (0.0, 0.08):
+        opts = dataclasses.replace(prob.options, weights={**prob.options.weights, "hip_margin": margin})
+        data = ProblemData(dataclasses.replace(prob, options=opts), g1)
+        win, _ = solver.get_window(g1, data.structure)
+        _, _, _, _, P, W0 = data.fill(win, *solver.homotopy_stages(opts)[-1])
+        assert np.all(P[win.P["hip_margin"]] == margin)
+        g = ca.Function("g", [win.a, win.b, win.p], [win.g])
+        rows[margin] = np.array(g(W0[:, 3], W0[:, 4], P[:, 3])).ravel()[win.G["hip roll coupling"]]
+    assert np.allclose(rows[0.0] - rows[0.08], 0.08)

@@ -40,6 +40,10 @@ SUPPORT_MATCH = 0.02
 #: the carried-object weights (w_carry_*) are off here; S1's task file asks for w_carry_pose 500
 #: (TrajectoryOptions.weights): with the fixed carry nominal S1's carry reached its iteration cap
 #: without it and passed every check with it (docs/to.md, session 17)
+#: ``hip_margin`` (rad): the hip roll kept this far inside ``hip_coupling``'s bound (0: on it). S1's
+#: plans step onto the box on the bound (0.0-0.3 cm between the pelvis and hip-roll meshes); executed,
+#: 0.05-0.1 rad of error jammed the two and the robot fell; with 0.08 in the step's subtask the plan
+#: executes to task success in the box 2.0 kg world (docs/execution.md, session 50)
 DEFAULT_WEIGHTS = {
     "w_post": 1.0, "w_xd": 0.05, "w_acc": 0.5, "w_force": 0.2, "w_force_rate": 20.0, "w_st_com": 20.0, "w_st_vel": 10.0,
     "w_kff": 5e2, "w_wk_base": 20.0, "w_upright": 20.0, "w_anchor": 10.0, "w_kfb_z": 100.0,
@@ -47,7 +51,7 @@ DEFAULT_WEIGHTS = {
     "w_pen": 1e4, "w_hom": 1e2, "w_obj_reg": 1.0, "w_obj_acc": 20.0, "w_carry_acc": 0.0, "w_carry_aacc": 0.0,
     "w_carry_pose": 0.0, "w_carry_offset": 0.0,
     "w_goal": 1e3,
-    "mu_foot": 0.6, "mu_hand": 0.8, "mu_obj": 0.5, "self_margin": 0.0,
+    "mu_foot": 0.6, "mu_hand": 0.8, "mu_obj": 0.5, "self_margin": 0.0, "hip_margin": 0.0,
     "pair_prefilter": 0.25,
 }
 
@@ -1014,7 +1018,7 @@ class ProblemData:
             sp("w_stage", 1.0 / N)
             sp("b_st", 1.0 if ph.phase_type == STANCE else 0.0)
             for key in ("w_post", "w_xd", "w_acc", "w_force", "w_force_rate", "w_st_com", "w_st_vel", "w_wk_base",
-                        "w_upright", "w_slack", "w_self", "mu_hand", "self_margin"):
+                        "w_upright", "w_slack", "w_self", "mu_hand", "self_margin", "hip_margin"):
                 sp(key, w[key])
             if k == N:   # the knot after the last is a zero dummy, not a change of load
                 sp("w_force_rate", 0.0)

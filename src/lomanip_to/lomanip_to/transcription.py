@@ -140,7 +140,7 @@ def par_layout(st: Structure) -> Layout:
     P = Layout("p")
     for k in ("dt", "w_stage", "b_st", "w_post", "w_xd", "w_acc", "w_force", "w_force_rate", "w_st_com", "w_st_vel",
               "w_kff", "w_wk_base", "w_upright", "w_anchor", "w_kfb_z", "w_kfb_th", "w_slack",
-              "w_self", "mu_foot", "mu_hand", "mu_obj", "self_margin"):
+              "w_self", "mu_foot", "mu_hand", "mu_obj", "self_margin", "hip_margin"):
         P.add(k, 1)
     P.add("x_ref", 35)
     P.add("x_kf", 35)
@@ -576,7 +576,7 @@ class Window:
         add("CoM inside the double stance", ca.vertcat(ca.dot(rel, head) + half_al, ca.dot(rel, head) - half_al,
                                                        ca.dot(rel, lat) + half_ac, ca.dot(rel, lat) - half_ac))
         # deep hip flexion needs an abducted thigh, or the hip-roll link meets the pelvis (hip_coupling)
-        add("hip roll coupling", hip_roll_clearance(wa["x"][6:]))
+        add("hip roll coupling", hip_roll_clearance(wa["x"][6:]) - pp["hip_margin"])
         for (i, j) in st.self_pairs:
             si, sj = m.spheres[i], m.spheres[j]
             dd = ca.sumsqr(spheres[i] - spheres[j]) - (si.radius + sj.radius + pp["self_margin"]) ** 2
