@@ -334,10 +334,42 @@ def test_hand_offset_subtracts_the_plans_own_distance_from_the_surface(gap):
         here = tr.phase_at(t)
         if here is not None and limb in here.contacts:
             site[j] += gap * on._contact_normals(here.contacts[limb])[j]
-    base = float(np.abs(n[i]) @ HAND_COLLISION_HALF_SIZE) + on.g.hand_squeeze
+    base = float(np.abs(n[i]) @ HAND_COLLISION_HALF_SIZE) + on.g.hand_squeeze_lifted  # the box is lifted
     np.testing.assert_allclose(on._hand_offsets(limb, R, site)[i], (base - gap) * n[i], atol=1e-9)
     off = WholeBodyController(sim.world, tr, WbcGains(hand_offset_plan_gap=False))
     np.testing.assert_allclose(off._hand_offsets(limb, R, site)[i], base * n[i], atol=1e-9)
+
+
+def test_the_deeper_squeeze_is_for_objects_the_plan_lifts():
+    """``hand_squeeze_lifted`` sets the hand target's depth into a lifted object (case_lift_box's
+    box), ``hand_squeeze`` into one the plan keeps at its height (the same plan with the box's
+    height held: a pushed object), and neither touches the other's contacts."""
+    import dataclasses
+
+    sim, tr = simulation("case_lift_box")
+    limb = "left_hand"
+    ph = next(ph for ph in tr.phases if limb in ph.contacts)
+    tr = dataclasses.replace(tr, phases=[ph])  # this contact alone (no neighbour's ramp)
+    i = int(np.searchsorted(tr.t, 0.5 * (ph.start + ph.end)))
+    R = np.repeat(np.eye(3)[None], tr.n, 0)
+    oid = ph.contacts[limb].object_id
+    pos, quat = tr.objects[oid]
+    flat_pos = pos.copy()
+    flat_pos[:, 2] = pos[0, 2]
+    pushed = dataclasses.replace(tr, objects={**tr.objects, oid: (flat_pos, quat)})
+
+    def offset(plan, **gains):
+        wbc = WholeBodyController(sim.world, plan, WbcGains(**gains))
+        return wbc._hand_offsets(limb, R)[i], wbc._contact_normals(ph.contacts[limb])[i]
+
+    ref, n = offset(tr, hand_squeeze=-0.005, hand_squeeze_lifted=-0.025)
+    deeper, _ = offset(tr, hand_squeeze=-0.005, hand_squeeze_lifted=-0.035)
+    np.testing.assert_allclose(deeper - ref, -0.01 * n, atol=1e-9)
+    np.testing.assert_allclose(offset(tr, hand_squeeze=-0.015, hand_squeeze_lifted=-0.025)[0], ref, atol=1e-12)
+    flat, n_flat = offset(pushed, hand_squeeze=-0.005, hand_squeeze_lifted=-0.025)
+    np.testing.assert_allclose(offset(pushed, hand_squeeze=-0.005, hand_squeeze_lifted=-0.035)[0], flat, atol=1e-12)
+    np.testing.assert_allclose(offset(pushed, hand_squeeze=-0.015, hand_squeeze_lifted=-0.025)[0] - flat,
+                               -0.01 * n_flat, atol=1e-9)
 
 
 def test_lifted_object_gets_the_force_its_planned_motion_needs():

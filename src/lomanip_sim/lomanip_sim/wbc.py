@@ -233,6 +233,13 @@ class WbcGains:
     # m/s^2 for 30 ms, 3.3 cm in front of the heels: the robot fell backwards at 2.5 s
     hand_offset_smooth: bool = True
     hand_squeeze: float = -0.005  # m: hand target this far inside the surface (negative = into the object)
+    # m, the same for a hand on an object the plan lifts (a grasp that carries it). Why: at 5 mm the
+    # hands' real squeeze on S1's 2.5 kg box was 15-35 N a side, the box slid 10 cm down between them
+    # over 1.5 s of the carry and was lost at 6.3 s (the same plan executes in the box 2.0 kg world);
+    # with 2.5 cm S1's plan executes to task success in 4 of its 5 worlds (1.0 cm: 0 of 1, 1.5 cm:
+    # 2 of 5, 2.0 cm: 3 of 5) and S2's in 5 of 7 (4 of 7 at 5 mm). Only on lifted objects: 2.5 cm on
+    # every contact took the demo's push from 60 to 43 of 64 (docs/execution.md, session 51)
+    hand_squeeze_lifted: float = -0.025
     # the hand offset subtracts the plan's own distance of the hand site from the surface, read off
     # the plan's contact points where it gives them (Trajectory.points), so a plan whose hand already
     # stands off the surface (lomanip_to Options.hand_standoff) is not pushed out twice, and one whose
@@ -980,6 +987,8 @@ class WholeBodyController:
             if c is None:
                 continue
             normals = self._contact_normals(c)
+            lifted = c.object_id in tr.objects and self._lifted_in_plan(c.object_id)
+            squeeze = g.hand_squeeze_lifted if lifted else g.hand_squeeze
             # the plan's site height above the surface over the phase; the median, since a point on
             # the phase's boundary may carry the neighbouring phase's contact point
             gap = 0.0
@@ -996,7 +1005,7 @@ class WholeBodyController:
             clear = g.hand_clearance * u
             for i in np.nonzero(w > 0)[0]:
                 n = normals[i]
-                d = float(np.abs(R_hand[i].T @ n) @ half) + g.hand_squeeze + clear[i] - gap
+                d = float(np.abs(R_hand[i].T @ n) @ half) + squeeze + clear[i] - gap
                 cand = w[i] * d * n
                 if np.linalg.norm(cand) > np.linalg.norm(off[i]):
                     off[i] = cand
