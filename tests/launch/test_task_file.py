@@ -35,6 +35,8 @@ def test_missing_file_lists_shipped_tasks(tmp_path):
     ({"scenario": "s1_basket", "prompts": ["a"], "options": {"solver_options": {"tol": [1]}}}, "ipopt option names"),
     ({"scenario": "s1_basket", "prompts": ["a"], "options": {"weights": {"w_goal": "big"}}}, "cost weight names to numbers"),
     ({"scenario": "s1_basket", "prompts": ["a"], "options": {"weights": [1.0]}}, "must be dict"),
+    ({"scenario": "s1_basket", "prompts": ["a"], "options": {"subtask_options": {"1": {}}}}, "subtask indices"),
+    ({"scenario": "s1_basket", "prompts": ["a"], "options": {"subtask_options": {1: True}}}, "subtask indices"),
     ({"scenario": "s1_basket", "prompts": ["a"], "colour": "red"}, "unknown field"),
 ])
 def test_bad_tasks_are_rejected_with_a_reason(data, match):
@@ -73,7 +75,7 @@ def test_task_options_reach_the_trajectory_options_message():
     assert list(msg.inertial_torque_groups) == ["waist"]  # the TO's default (lomanip_to.problem.Options)
     assert msg.single_support_com_lateral == 0.08  # likewise
     for key, kind in _OPTION_FIELDS.items():
-        if key in ("solver_options", "weights"):  # mappings in YAML, SolverOption[] / CostWeight[] in the message
+        if key in ("solver_options", "weights", "subtask_options"):  # mappings in YAML, arrays in the message
             assert list(getattr(msg, key)) == []
             continue
         assert isinstance(getattr(msg, key), kind), key
@@ -105,6 +107,19 @@ def test_weights_become_cost_weight_entries():
     assert task.options["weights"] == {"w_carry_pose": 500.0}
     entries = {w.name: w.value for w in goal_from_task(task).options.weights}
     assert entries == {"w_carry_pose": 500.0}
+
+
+def test_subtask_options_become_subtask_options_entries():
+    """Each subtask's options travel as a YAML mapping that reads back to the same values."""
+    import yaml
+
+    from lomanip_launch.plan_client import goal_from_task
+
+    over = {2: {"arm_body_self_pairs": True, "weights": {"w_carry_pose": 500.0, "hip_margin": 0.08}}, 1: {"dt_lift": 0.1}}
+    task = task_from_dict({"scenario": "s1_basket", "prompts": ["a"], "options": {"subtask_options": over}})
+    entries = goal_from_task(task).options.subtask_options
+    assert [e.subtask_index for e in entries] == [1, 2]
+    assert {e.subtask_index: yaml.safe_load(e.options_yaml) for e in entries} == over
 
 
 def test_s1_task_asks_for_the_configuration_that_passed_its_checks():

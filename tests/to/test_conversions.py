@@ -126,6 +126,49 @@ def test_options_round_trip_the_cost_weights(model):
     assert conv.options_from_msg(req.options).weights == {"w_carry_pose": 500.0}
 
 
+def test_options_round_trip_the_subtask_options(model):
+    """A problem's subtask options travel in its request (YAML per subtask) and read back equal;
+    without any the node's own stay."""
+    from lomanip_msgs.msg import TrajectoryOptions
+    from lomanip_to.problem import Options
+
+    prob = load_problem("s1_basket", model=model)
+    assert prob.options.subtask_options[2]["weights"]["hip_margin"] == 0.08  # the fixture asks for them
+    prob.options = prob.options.replaced(subtask_options={**prob.options.subtask_options,
+                                                          0: {"inertial_torque_groups": ("waist",),
+                                                              "ipopt": {"tol": 1e-5}}})
+    req = conv.request_from_problem(prob, model.joint_names)
+    assert conv.options_from_msg(req.options).subtask_options == prob.options.subtask_options
+    base = Options(subtask_options={1: {"dt_lift": 0.1}})
+    assert conv.options_from_msg(TrajectoryOptions(), base).subtask_options == {1: {"dt_lift": 0.1}}
+
+
+@pytest.mark.parametrize("text, match", [("[1, 2]", "must be a mapping"), ("{a: [", "not YAML"),
+                                         ("{arm_body_self_pairs: true}", "given twice")])
+def test_bad_subtask_options_are_invalid_requests(text, match):
+    from lomanip_msgs.msg import SubtaskOptions, TrajectoryOptions
+
+    entries = [SubtaskOptions(subtask_index=1, options_yaml=text)]
+    if match == "given twice":
+        entries.append(SubtaskOptions(subtask_index=1, options_yaml="{}"))
+    with pytest.raises(ProblemError, match=match) as err:
+        conv.options_from_msg(TrajectoryOptions(subtask_options=entries))
+    assert err.value.code == INVALID_REQUEST
+
+
+def test_subtask_options_naming_unknown_options_or_subtasks_are_refused_before_the_solve(model):
+    from lomanip_msgs.msg import SubtaskOptions
+
+    prob = load_problem("case_one_step", model=model)
+    for entry, match in [(SubtaskOptions(subtask_index=0, options_yaml="{warp_speed: 9}"), "unknown option"),
+                         (SubtaskOptions(subtask_index=7, options_yaml="{dt_lift: 0.1}"), "no subtask 7")]:
+        req = conv.request_from_problem(prob, model.joint_names)
+        req.options.subtask_options = [entry]
+        with pytest.raises(ProblemError, match=match) as err:
+            validate_problem(conv.problem_from_request(req, model.joint_names), model)
+        assert err.value.code == INVALID_REQUEST
+
+
 def test_options_round_trip_the_waist_yaw_range(model):
     from lomanip_msgs.msg import TrajectoryOptions
     from lomanip_to.problem import Options

@@ -17,7 +17,8 @@ from rclpy.node import Node
 
 from lomanip_launch.task_file import Task
 from lomanip_msgs.action import Plan
-from lomanip_msgs.msg import CostWeight, ErrorCode, PlacementGoal, ScenarioParameters, SolverOption, TrajectoryOptions
+from lomanip_msgs.msg import (CostWeight, ErrorCode, PlacementGoal, ScenarioParameters, SolverOption, SubtaskOptions,
+                              TrajectoryOptions)
 
 import yaml
 
@@ -51,6 +52,9 @@ def goal_from_task(task: Task, execute: bool = False) -> Plan.Goal:
             options.solver_options = [SolverOption(name=k, value=v) for k, v in value.items()]
         elif key == "weights":
             options.weights = [CostWeight(name=k, value=float(v)) for k, v in value.items()]
+        elif key == "subtask_options":
+            options.subtask_options = [SubtaskOptions(subtask_index=int(k), options_yaml=yaml.safe_dump(
+                v, default_flow_style=True, width=10**6).strip()) for k, v in sorted(value.items())]
         else:
             setattr(options, key, type(getattr(options, key))(value))
     goal.options = options

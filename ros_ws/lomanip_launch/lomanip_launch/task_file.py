@@ -6,6 +6,7 @@
     placement_goals:                     # optional
       - {object: box, position: [1.0, 0.4, 0.15], yaw: 0.0}
     options: {max_iterations: 500}       # optional lomanip_msgs/TrajectoryOptions fields;
+                                         # subtask_options as {subtask index: {option: value}};
                                          # solver_options as a mapping {ipopt name: value}
                                          # (YAML's yes/no booleans are ipopt's "yes"/"no");
                                          # weights as a mapping {TO cost weight name: number}
@@ -34,7 +35,8 @@ _OPTION_FIELDS = {"use_keyframe_base_cost": bool, "use_keyframe_foot_cost": bool
                   "load_in_double_support_margin": bool, "resting_object_dynamics": bool, "cop_margin_front": float,
                   "cop_margin_side": float,
                   "hand_standoff": float, "forearm_clear_of_held_object": bool,
-                  "final_warm_start_max_violation": float, "solver_options": dict, "weights": dict}
+                  "final_warm_start_max_violation": float, "solver_options": dict, "weights": dict,
+                  "subtask_options": dict}
 
 
 class TaskFileError(ValueError):
@@ -109,6 +111,10 @@ def task_from_dict(data: dict, where: str = "task") -> Task:
         if key == "weights" and not all(isinstance(k, str) and isinstance(v, (int, float)) and not isinstance(v, bool)
                                         for k, v in value.items()):
             raise TaskFileError(f"{where}: option weights must map TO cost weight names to numbers")
+        if key == "subtask_options" and not all(isinstance(k, int) and not isinstance(k, bool) and k >= 0
+                                                and isinstance(v, dict) for k, v in value.items()):
+            raise TaskFileError(f"{where}: option subtask_options must map subtask indices (0, 1, ...) to option "
+                                "mappings")
     options = dict(options)
     if "weights" in options:
         options["weights"] = {k: float(v) for k, v in options["weights"].items()}

@@ -22,8 +22,8 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint, MultiDOFJ
     MultiDOFJointTrajectoryPoint
 
 from lomanip_msgs.msg import (ContactPhase as ContactPhaseMsg, ContactWrench, CostWeight, KnotWrenches, ObjectMotion as
-                              ObjectMotionMsg, ObjectTrajectory, SolverOption, SolverStatistics, TrajectoryOptions,
-                              WholeBodyTrajectory)
+                              ObjectMotionMsg, ObjectTrajectory, SolverOption, SolverStatistics, SubtaskOptions,
+                              TrajectoryOptions, WholeBodyTrajectory)
 
 from . import problem as P
 
@@ -189,7 +189,61 @@ def options_from_msg(o: TrajectoryOptions, base: P.Options | None = None) -> P.O
         final_warm_start_max_violation=float(o.final_warm_start_max_violation),
         ipopt={**(base.ipopt if base is not None else {}),
                **{str(kv.name): P.parse_option_value(str(kv.value)) for kv in o.solver_options}},
-        weights={**(base.weights if base is not None else {}), **{str(w.name): float(w.value) for w in o.weights}})
+        weights={**(base.weights if base is not None else {}), **{str(w.name): float(w.value) for w in o.weights}},
+        subtask_options=subtask_options_from_msg(o.subtask_options) if o.subtask_options else
+        dict(base.subtask_options if base is not None else {}))
+
+
+#: Options fields that are tuples (YAML gives lists)
+_TUPLE_OPTIONS = ("collision_groups", "inertial_torque_groups")
+
+
+def subtask_options_from_msg(entries) -> dict:
+    """{subtask index: {Options name: value}} from SubtaskOptions entries; text that is not a YAML
+    mapping, or a subtask given twice, is INVALID_REQUEST (names and values are checked with the
+    schedule, ``problem.validate_problem``)."""
+    import yaml
+
+    out: dict = {}
+    for e in entries:
+        sub = int(e.subtask_index)
+        if sub in out:
+            raise P.ProblemError(P.INVALID_REQUEST, f"options.subtask_options: subtask {sub} given twice", "options")
+        try:
+            over = yaml.safe_load(e.options_yaml) if e.options_yaml.strip() else {}
+        except yaml.YAMLError as err:
+            raise P.ProblemError(P.INVALID_REQUEST, f"options.subtask_options[{sub}]: options_yaml is not YAML "
+                                                    f"({str(err).splitlines()[0]})", "options") from None
+        if not isinstance(over, dict) or not all(isinstance(k, str) for k in over):
+            raise P.ProblemError(P.INVALID_REQUEST, f"options.subtask_options[{sub}]: options_yaml must be a mapping "
+                                                    f"of option names to values, got {e.options_yaml!r}", "options")
+        over = dict(over)
+        if "solver_options" in over:  # the message's name for them
+            over["ipopt"] = {str(k): ("yes" if v else "no") if isinstance(v, bool) else v
+                             for k, v in (over.pop("solver_options") or {}).items()}
+        for k in _TUPLE_OPTIONS:
+            if isinstance(over.get(k), list):
+                over[k] = tuple(over[k])
+        out[sub] = over
+    return out
+
+
+def subtask_options_msg(subtask_options: dict) -> list:
+    """SubtaskOptions entries of ``Options.subtask_options`` (tuples written as YAML lists)."""
+    import yaml
+
+    def plain(v):
+        if isinstance(v, (tuple, list)):
+            return [plain(x) for x in v]
+        if isinstance(v, dict):
+            return {str(k): plain(x) for k, x in v.items()}
+        if isinstance(v, (np.floating, np.integer, np.bool_)):
+            return v.item()
+        return v
+
+    return [SubtaskOptions(subtask_index=int(sub),
+                           options_yaml=yaml.safe_dump(plain(over or {}), default_flow_style=True, width=10**6).strip())
+            for sub, over in sorted((subtask_options or {}).items())]
 
 
 def initial_configuration(joints, base_pose: Pose, keyframes: list[P.Keyframe], joint_names) -> tuple:
@@ -403,7 +457,8 @@ def request_from_problem(prob: P.Problem, joint_names):
         forearm_clear_of_held_object=bool(o.forearm_clear_of_held_object),
         final_warm_start_max_violation=float(o.final_warm_start_max_violation),
         solver_options=[SolverOption(name=str(k), value=str(v)) for k, v in (o.ipopt or {}).items()],
-        weights=[CostWeight(name=str(k), value=float(v)) for k, v in (o.weights or {}).items()])
+        weights=[CostWeight(name=str(k), value=float(v)) for k, v in (o.weights or {}).items()],
+        subtask_options=subtask_options_msg(o.subtask_options))
     if prob.initial_configuration is not None:
         x0 = np.asarray(prob.initial_configuration, float)
         req.initial_base_pose = Pose(position=_pt(x0[:3]), orientation=_q(rot_to_quat_xyzw(rpy_to_rot(x0[3:6]))))
