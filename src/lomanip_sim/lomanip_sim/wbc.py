@@ -86,6 +86,13 @@ class WbcGains:
     # 0.6 / 0.12: 13.7 s), and the four bench_push plans still succeed (docs/execution.md)
     step_adjust_gain: float = 0.45
     step_adjust_max: float = 0.12  # m
+    # A swing foot that lands on a movable object (S1's step onto the box) follows where that object
+    # actually is: its target shifts by the planned landing point's displacement on the object
+    # (actual pose against planned, yaw included), faded in over the swing's first half. Why: set
+    # down 5 cm nearer than planned (the box 3.0 kg world), S1's rising right foot struck the box's
+    # edge, pushed it 4 cm further and landed 9 cm off its centre; the foot slid off with the box
+    # and the robot fell at 14.8 s (docs/execution.md, session 51)
+    foot_follows_object: bool = True
     contact_kd: float = 20.0  # damping of a contact foot's drift velocity
     hand_kp: float = 400.0  # stiff near contacts: a lagging hand catches on the table edge (case_lift_box)
     hand_kd: float = 40.0
@@ -540,6 +547,7 @@ class WholeBodyController:
         #: hand -> shift (world, m) of its reference this step by hand_registered_after_release
         self.registered_shifts: dict[str, np.ndarray] = {}
         self._lifted: dict[str, bool] = {}  # object -> moved vertically by the plan (_lifted_in_plan)
+        self._landings: dict = {}  # (foot, id(swing phase)) -> (object id, landing index) or None (_landing)
         self._arm_only = {l: np.zeros(traj.n, bool) for l in HANDS}  # hand position task on its own arm only
         self.approach_lifts: list[tuple[str, float, float]] = []  # (hand, contact start, largest lift in m)
         self.retreat_lifts: list[tuple[str, float, float]] = []  # (hand, contact end, largest lift in m)
@@ -1142,6 +1150,36 @@ class WholeBodyController:
             shift *= g.step_adjust_max / n
         return np.array([shift[0], shift[1], 0.0])
 
+    def _landing(self, limb: str, phase) -> tuple | None:
+        """(object id, landing grid index) of the contact that ends swing ``phase`` of foot ``limb``
+        when it is on a movable object of the plan; else None (cached per phase)."""
+        key = (limb, id(phase))
+        if key not in self._landings:
+            out = None
+            later = [ph for ph in self.traj.phases if ph.start >= phase.end - 1e-9]
+            nxt = next((ph for ph in later if ph.contacts.get(limb) is not None), None)
+            if nxt is not None and nxt.contacts[limb].object_id in self.traj.objects:
+                out = (nxt.contacts[limb].object_id, int(np.searchsorted(self.traj.t, nxt.start - 1e-9)))
+            self._landings[key] = out
+        return self._landings[key]
+
+    def _landing_shift(self, data: mujoco.MjData, limb: str, phase, t: float) -> np.ndarray:
+        """(3,) shift of a swing foot's target by its landing point's displacement on the object it lands
+        on (``foot_follows_object``), faded in over the first half of the swing."""
+        land = self._landing(limb, phase)
+        if land is None:
+            return np.zeros(3)
+        oid, k = land
+        k = min(k, self.traj.n - 2)
+        fr = self._object_frames(data, oid, k, 0.0, lifted=True)
+        if fr is None:
+            return np.zeros(3)
+        c_act, R_act, c_plan, R_plan = fr
+        p_land = self.refs.site_p[limb][k]
+        shift = c_act + R_act @ (R_plan.T @ (p_land - c_plan)) - p_land
+        u = np.clip((t - phase.start) / max(0.5 * (phase.end - phase.start), 1e-3), 0.0, 1.0)
+        return float(smoothstep(u)) * shift
+
     def qp_sole_cop(self, limb: str) -> np.ndarray | None:
         """(2,) the centre of pressure (sole frame x, y, as ``FOOT_CONTACT_POINTS``) of the corner forces
         the last QP chose for stance foot ``limb``, or None (a swing foot, or under 1 N). Why: set
@@ -1409,6 +1447,8 @@ class WholeBodyController:
                         a_ref = w * a_ref
                     if g.step_adjust_gain > 0 and phase is not None:
                         p_ref = p_ref + self._step_adjustment(data, com, Jc @ v, phase, t, i, s)
+                    if g.foot_follows_object and phase is not None:
+                        p_ref = p_ref + self._landing_shift(data, limb, phase, t)
                     e = np.concatenate([p_ref - p, _rot_error(R_.site_R[limb][i if s < 0.5 else i + 1], Rm)])
                     b = a_ref + g.foot_kp * e + g.foot_kd * (v_ref - vel) - jdv
                     task(J, b, g.w_swing)
