@@ -91,7 +91,9 @@ class WbcGains:
     # (actual pose against planned, yaw included), faded in over the swing's first half. Why: set
     # down 5 cm nearer than planned (the box 3.0 kg world), S1's rising right foot struck the box's
     # edge, pushed it 4 cm further and landed 9 cm off its centre; the foot slid off with the box
-    # and the robot fell at 14.8 s (docs/execution.md, session 51)
+    # and the robot fell at 14.8 s. With it that run still falls (15.0 s: the body, planned for
+    # the box's planned place, meets the moved box); S1's four other worlds succeed either way, and
+    # no other plan steps onto an object (docs/execution.md, session 51)
     foot_follows_object: bool = True
     contact_kd: float = 20.0  # damping of a contact foot's drift velocity
     hand_kp: float = 400.0  # stiff near contacts: a lagging hand catches on the table edge (case_lift_box)
@@ -244,8 +246,8 @@ class WbcGains:
     # hands' real squeeze on S1's 2.5 kg box was 15-35 N a side, the box slid 10 cm down between them
     # over 1.5 s of the carry and was lost at 6.3 s (the same plan executes in the box 2.0 kg world);
     # with 2.5 cm S1's plan executes to task success in 4 of its 5 worlds (1.0 cm: 0 of 1, 1.5 cm:
-    # 2 of 5, 2.0 cm: 3 of 5) and S2's in 5 of 7 (4 of 7 at 5 mm). Only on lifted objects: 2.5 cm on
-    # every contact took the demo's push from 60 to 43 of 64 (docs/execution.md, session 51)
+    # 2 of 5, 2.0 cm: 3 of 5); S2's in 4 of 7 as at 5 mm. Only on lifted objects: 2.5 cm on every
+    # contact took the demo's push from 60 to 43 of 64 (S2: 5 of 7; docs/execution.md, session 51)
     hand_squeeze_lifted: float = -0.025
     # the hand offset subtracts the plan's own distance of the hand site from the surface, read off
     # the plan's contact points where it gives them (Trajectory.points), so a plan whose hand already
