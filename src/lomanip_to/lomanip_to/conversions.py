@@ -194,10 +194,6 @@ def options_from_msg(o: TrajectoryOptions, base: P.Options | None = None) -> P.O
         dict(base.subtask_options if base is not None else {}))
 
 
-#: Options fields that are tuples (YAML gives lists)
-_TUPLE_OPTIONS = ("collision_groups", "inertial_torque_groups")
-
-
 def subtask_options_from_msg(entries) -> dict:
     """{subtask index: {Options name: value}} from SubtaskOptions entries; text that is not a YAML
     mapping, or a subtask given twice, is INVALID_REQUEST (names and values are checked with the
@@ -217,14 +213,7 @@ def subtask_options_from_msg(entries) -> dict:
         if not isinstance(over, dict) or not all(isinstance(k, str) for k in over):
             raise P.ProblemError(P.INVALID_REQUEST, f"options.subtask_options[{sub}]: options_yaml must be a mapping "
                                                     f"of option names to values, got {e.options_yaml!r}", "options")
-        over = dict(over)
-        if "solver_options" in over:  # the message's name for them
-            over["ipopt"] = {str(k): ("yes" if v else "no") if isinstance(v, bool) else v
-                             for k, v in (over.pop("solver_options") or {}).items()}
-        for k in _TUPLE_OPTIONS:
-            if isinstance(over.get(k), list):
-                over[k] = tuple(over[k])
-        out[sub] = over
+        out[sub] = dict(P.option_item(k, v) for k, v in over.items())
     return out
 
 

@@ -22,8 +22,8 @@ import numpy as np
 import yaml
 
 from .model import G1Model, rot_to_quat_xyzw, rpy_to_rot
-from .problem import (ContactPhase, ContactSpec, Keyframe, ObjectMotion, Options, PlacementGoal,
-                      Primitive, Problem, SceneObject)
+from .problem import (TUPLE_OPTIONS, ContactPhase, ContactSpec, Keyframe, ObjectMotion, Options, PlacementGoal,
+                      Primitive, Problem, SceneObject, option_item)
 
 CONFIG_DIR = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "config"))
 
@@ -49,13 +49,12 @@ def _subst(v, params):
 def load_options(d: dict | None, base: Options | None = None) -> Options:
     opt = copy.deepcopy(base) if base is not None else Options()
     for k, v in (d or {}).items():
-        if k == "solver_options":  # a task file's name for them (TrajectoryOptions.solver_options)
-            k, v = "ipopt", {n: ("yes" if x else "no") if isinstance(x, bool) else x for n, x in v.items()}
+        k, v = option_item(k, v)  # solver_options: a task file's name for ipopt (TrajectoryOptions.solver_options)
         if k == "ipopt":
             v = {**opt.ipopt, **v}
         if not hasattr(opt, k):
             raise ValueError(f"unknown TO option {k!r}")
-        if k in ("collision_groups", "inertial_torque_groups"):
+        if k in TUPLE_OPTIONS:
             v = tuple(v)
         if k == "weights":
             w = dict(opt.weights)

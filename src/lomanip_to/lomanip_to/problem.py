@@ -544,6 +544,21 @@ def _finite(arr, n: int | None, where: str) -> np.ndarray:
 RESERVED_IPOPT_OPTIONS = ("max_iter", "max_wall_time", "max_cpu_time", "linear_solver")
 
 
+#: Options fields that are tuples (YAML gives lists)
+TUPLE_OPTIONS = ("collision_groups", "inertial_torque_groups")
+
+
+def option_item(name: str, value):
+    """(Options field name, value) of one option as a task file or YAML text names it:
+    ``solver_options`` is ``ipopt`` (YAML's yes/no booleans become ipopt's words), list-valued
+    tuple fields become tuples."""
+    if name == "solver_options":
+        return "ipopt", {str(n): ("yes" if x else "no") if isinstance(x, bool) else x for n, x in (value or {}).items()}
+    if name in TUPLE_OPTIONS and isinstance(value, list):
+        return name, tuple(value)
+    return name, value
+
+
 def parse_option_value(text: str):
     """A solver option's text value as ipopt wants it: int, else float, else the string."""
     for kind in (int, float):
