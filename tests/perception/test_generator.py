@@ -85,6 +85,10 @@ def test_step_on_the_box_and_grab_the_basket():
         assert obj.object_class == "basket" and abs(obj.signed_distance(c.point)[0][0]) < 1e-6
         top = obj.pos[2] + 2 * obj.bbox_local()[1][2]
         assert top - 0.09 < c.point[2] < top  # near the rim
+        # in the walls' half nearer the person (who lifts it towards themselves)
+        centre = obj.pos + obj.R @ obj.bbox_local()[0]
+        towards_basket = (centre - gt.keypoints_world["pelvis"])[:2]
+        assert (c.point - centre)[:2] @ towards_basket / np.linalg.norm(towards_basket) < -0.03
 
 
 def test_push_the_trolley_hands_on_the_handle():

@@ -125,9 +125,13 @@ def _hand_contacts(action: str, obj: ObjectGeometry, approach_local: np.ndarray,
             n = -a
             p = c - ext_a * a + sgn * rng.uniform(0.3, 0.55) * ext_l * left
             p[2] = c[2] + rng.uniform(0.35, 0.75) * h[2]
-        elif cls == "basket":  # grab: outer face of the side walls, near the rim
+        elif cls == "basket":  # grab: outer face of the side walls, near the rim, in their near half
+            # (a person lifting a basket off a shelf in front of them holds it towards themselves;
+            # held mid-wall, as before session 52, the G1's upper arm lay along the basket and S1's
+            # grab from prompts ended 11.6 mm into it; the hand-written fixture holds it 6 cm from
+            # the near edge: docs/planner_s1.md, session 52)
             n = sgn * left
-            p = c + ext_l * n + rng.uniform(-0.2, 0.2) * ext_a * a
+            p = c + ext_l * n + rng.uniform(-0.75, -0.45) * ext_a * a
             p[2] = c[2] + h[2] - rng.uniform(0.04, 0.08)
         else:  # pick / place / grab a box-like object: the two side faces, in their upper half
             # (people lift a box by its sides near the top edge; low on the faces the G1 had to
