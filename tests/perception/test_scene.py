@@ -51,3 +51,43 @@ def test_union_of_primitives_cylinders_and_canonical_round_trip():
     assert np.allclose(2 * h, (0.8, 0.5, 0.9), atol=0.005)
     s = trolley.sample_surface(0.02)
     assert len(s) > 500 and np.max(np.abs(trolley.signed_distance(s)[0])) < 1e-3
+
+
+def _basket():
+    """A 30 x 40 x 25 cm basket: a bottom and four 1 cm walls, the frame at its bottom centre."""
+    wall = 0.005
+    prims = (Primitive("box", (0.15, 0.2, wall), np.array([0.0, 0.0, wall])),
+             Primitive("box", (wall, 0.2, 0.125), np.array([-0.15 + wall, 0.0, 0.125])),
+             Primitive("box", (wall, 0.2, 0.125), np.array([0.15 - wall, 0.0, 0.125])),
+             Primitive("box", (0.15, wall, 0.125), np.array([0.0, -0.2 + wall, 0.125])),
+             Primitive("box", (0.15, wall, 0.125), np.array([0.0, 0.2 - wall, 0.125])))
+    return ObjectGeometry("basket", "basket", np.array([1.0, 0.0, 1.0]), frames.yaw_to_quat(0.0), prims)
+
+
+def test_a_hand_point_deep_in_a_thin_wall_goes_to_the_face_its_elbow_is_on():
+    basket = _basket()
+    # 7 mm past the left wall's inner face (y = 0.19), the elbow outside the basket to the left
+    hand = np.array([[0.95, 0.183, 1.2]])
+    elbow = np.array([[0.7, 0.35, 1.05]])
+    c, n = basket.project_to_surface(hand)
+    assert np.allclose(n[0], [0, -1, 0]) and np.isclose(c[0, 1], 0.19)   # the closest: the inner face
+    c, n = basket.project_to_surface_facing(hand, elbow)
+    assert np.allclose(n[0], [0, 1, 0]) and np.allclose(c[0], [0.95, 0.2, 1.2])   # the outer face
+    # an elbow inside the basket keeps the inner face (a hand hooked over the rim)
+    c, n = basket.project_to_surface_facing(hand, np.array([[1.0, 0.0, 1.3]]))
+    assert np.allclose(n[0], [0, -1, 0])
+    # a facing face farther than the detour allows is not taken
+    c, n = basket.project_to_surface_facing(hand, elbow, max_detour=0.005)
+    assert np.allclose(n[0], [0, -1, 0])
+
+
+def test_facing_projection_keeps_the_closest_surface_when_it_faces_the_elbow():
+    b = _box(0.8)
+    p = np.random.default_rng(1).normal(b.pos, 0.3, (50, 3))
+    toward = b.pos + 3.0 * (p - b.pos)     # each point's elbow farther out along the same ray
+    c0, n0 = b.project_to_surface(p)
+    c1, n1 = b.project_to_surface_facing(p, toward)
+    sd, _, _ = b.signed_distance(c1)
+    assert np.max(np.abs(sd)) < 1e-9
+    faced = np.einsum("ij,ij->i", n0, toward - c0) > 0
+    assert faced.sum() > 25 and np.allclose(c1[faced], c0[faced]) and np.allclose(n1[faced], n0[faced])

@@ -80,3 +80,19 @@ def test_s1_from_prompts_has_the_fixtures_structure(s1_plan):
             assert np.allclose([c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2]], hp[t.limb], atol=1e-6)
     # the robot places the box standing in front of the shelf (x = 1.70), facing it
     assert place.qpos[0] < 1.42 - 0.3 and abs(place.qpos[1] - 1.0) < 0.15
+
+
+def test_s1_grabs_the_basket_by_the_outer_faces_of_its_walls_near_the_robot(s1_plan):
+    """Both hands on the outside of the side walls (a point estimated inside the 1 cm wall went to
+    its inner face before session 52), in the half nearer the robot (the fixture: 6 cm from the near
+    edge), so the upper arms do not lie along the basket."""
+    basket = next(o for o in s1_plan.state.objects if o.id == "basket")
+    grab = s1_plan.keyframes[2]
+    hands = {c.limb: c for c in grab.contacts if c.limb.endswith("hand")}
+    assert {c.object_id for c in hands.values()} == {"basket"}
+    for limb, side in (("left_hand", 1.0), ("right_hand", -1.0)):
+        c = hands[limb]
+        offset = np.asarray(c.position) - np.asarray(basket.position)
+        assert np.allclose(c.normal, [0.0, side, 0.0], atol=1e-6)        # outward, away from the basket
+        assert side * offset[1] > 0.199                                   # on the outer face (y +- 0.2)
+        assert -0.13 < offset[0] < -0.03                                  # near half (the robot at -x)

@@ -24,6 +24,10 @@ from .transfer import ContactTransfer, ObjectTransfer, TransferConfig, lift_keyp
 FLOOR_ID = "floor"
 LIMB_KEYPOINT = {"left_hand": "left_hand", "right_hand": "right_hand", "left_foot": "left_foot",
                  "right_foot": "right_foot"}
+#: the joint each limb comes from: its contact goes to a surface facing it (a departure from the
+#: paper's closest surface; scene.ObjectGeometry.project_to_surface_facing)
+LIMB_APPROACH_KEYPOINT = {"left_hand": "left_elbow", "right_hand": "right_elbow", "left_foot": "left_knee",
+                          "right_foot": "right_knee"}
 
 
 @dataclass
@@ -122,6 +126,16 @@ class PerceptionPipeline:
         validate_scene(scene)
         return [self.run_subtask(st, scene, keep_images) for st in subtasks]
 
+    @staticmethod
+    def _project(obj, pose, limbs, pts: np.ndarray, tr, gen_depth: np.ndarray, gen_cam: PinholeCamera):
+        """Transferred limb points onto ``obj``'s surface: each onto a face that looks towards the
+        limb's elbow or knee (transferred the same way), else onto the closest surface."""
+        names = [LIMB_APPROACH_KEYPOINT.get(limb) for limb in limbs]
+        if not all(n in pose.keypoint_names for n in names):
+            return obj.project_to_surface(pts)
+        toward = tr.apply(lift_keypoints(pose, names, gen_depth, gen_cam))
+        return obj.project_to_surface_facing(pts, toward)
+
     def _mask(self, image: PerceptionImage, cls: str, where: str, label: str, cache: dict) -> np.ndarray:
         key = (where, cls)
         if key in cache:
@@ -190,9 +204,10 @@ class PerceptionPipeline:
             if self.method == "geometry_unaware":
                 idx = [pose.index(n) for n in names]
                 pts = self.transfer.unaware_points(gen, mg, pose.uv[idx], scene.image, ms, self.models.matcher, label)
+                proj, normals = obj.project_to_surface(pts)
             else:
                 pts = tr.apply(lift_keypoints(pose, names, gen_depth, gen_cam))
-            proj, normals = obj.project_to_surface(pts)
+                proj, normals = self._project(obj, pose, inter.limbs, pts, tr, gen_depth, gen_cam)
             for limb, p_raw, p, n in zip(inter.limbs, pts, proj, normals):
                 raw[limb] = p_raw
                 conf = float(np.clip(tr.overlap if self.method == "geometry_aware" else 0.5, 0, 1) * pose.confidence)

@@ -20,6 +20,9 @@ import numpy as np
 from lomanip_sim import frames
 
 PRIMITIVE_TYPES = ("box", "sphere", "cylinder", "capsule")
+#: m: a limb's contact goes to a surface facing its elbow / knee only if that surface is at most this
+#: much farther than the closest one (ObjectGeometry.project_to_surface_facing)
+FACING_MAX_DETOUR = 0.03
 
 
 @dataclass(frozen=True)
@@ -223,3 +226,58 @@ class ObjectGeometry:
         """Closest surface point and outward normal (world) for each point."""
         _, c, n = self.signed_distance(p_world)
         return c, n
+
+    def project_to_surface_facing(self, p_world: np.ndarray, toward_world: np.ndarray,
+                                  max_detour: float = FACING_MAX_DETOUR) -> tuple[np.ndarray, np.ndarray]:
+        """Like :meth:`project_to_surface`, but each point goes to the closest surface whose outward
+        normal looks towards its ``toward_world`` point (the limb's elbow or knee), when one is at most
+        ``max_detour`` farther than the closest surface of all.
+
+        Why: a limb touches an object from the side its arm or leg is on. A hand point estimated a
+        centimetre deep in a basket's 1 cm wall is closest to the wall's inner face; the person held
+        the outer one (S1's grab, session 52)."""
+        p_world = np.atleast_2d(np.asarray(p_world, float))
+        toward_world = np.atleast_2d(np.asarray(toward_world, float))
+        c_out, n_out = self.project_to_surface(p_world)
+        c_all, n_all = self._surface_candidates(p_world)
+        for i in range(len(p_world)):
+            d_near = np.linalg.norm(c_out[i] - p_world[i])
+            d = np.linalg.norm(c_all[i] - p_world[i], axis=1)
+            facing = np.einsum("ij,ij->i", n_all[i], toward_world[i] - c_all[i]) > 0.0
+            ok = facing & (d <= d_near + max_detour)
+            if ok.any() and not np.dot(n_out[i], toward_world[i] - c_out[i]) > 0.0:
+                k = np.flatnonzero(ok)[np.argmin(d[ok])]
+                c_out[i], n_out[i] = c_all[i][k], n_all[i][k]
+        return c_out, n_out
+
+    def _surface_candidates(self, p_world: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """Per point: the projections onto every face of each box primitive and the closest point of
+        every other primitive (world points and outward normals), those buried in another
+        primitive of the union left out."""
+        pl = self.to_local(p_world)
+        pts, nrm = [], []
+        for prim in self.primitives:
+            q = (pl - prim.pos) @ prim.R
+            if prim.type == "box":
+                h = np.asarray(prim.size[:3], float)
+                for k in range(3):
+                    for sign in (-1.0, 1.0):
+                        c = np.clip(q, -h, h)
+                        c[:, k] = sign * h[k]
+                        n = np.zeros_like(q)
+                        n[:, k] = sign
+                        pts.append(c @ prim.R.T + prim.pos)
+                        nrm.append(n @ prim.R.T)
+            else:
+                _, c, n = prim.signed_distance_local(q)
+                pts.append(c @ prim.R.T + prim.pos)
+                nrm.append(n @ prim.R.T)
+        P = np.stack(pts, axis=1) @ self.R.T + self.pos      # (N, M, 3) world
+        Nn = np.stack(nrm, axis=1) @ self.R.T
+        out_p, out_n = [], []
+        for i in range(len(p_world)):
+            sd, _, _ = self.signed_distance(P[i])
+            keep = sd > -1e-6
+            out_p.append(P[i][keep])
+            out_n.append(Nn[i][keep])
+        return out_p, out_n
