@@ -82,6 +82,35 @@ def cases(args) -> list[tuple[str, str, dict, Path | None]]:
     return out
 
 
+def saved_task(saved: Path) -> str:
+    """The task file a saved result was planned from (tools/bench_plan.py's <out>/to/summary.json),
+    or "" for a fixture's result."""
+    summary = saved.parent / "summary.json"
+    rows = json.loads(summary.read_text()) if summary.is_file() else {}
+    rows = rows.get("rows", []) if isinstance(rows, dict) else []
+    return next((r.get("task") or "" for r in rows if f"{r['case']}_{r['variant']}" == saved.stem), "")
+
+
+def prompts_problem(task: str, overrides: dict, horizon: float):
+    """The TO problem of a plan from prompts, rebuilt from its task file as tools/bench_plan.py built
+    it (perception and retargeting are deterministic); ValueError if its horizon is not the saved
+    result's (the result is from older code or another task).
+
+    Why: the controller takes its contact states from the plan's schedule, and a plan from prompts
+    has its own (S1's: 19.4 s, 41 phases), not the fixture's (18.2 s). Before session 52 these
+    results were executed with the fixture's schedule."""
+    import bench_plan   # tools/ is on sys.path when run as a script
+    from lomanip_planner import offline
+
+    spec = bench_plan.load_task(task)
+    plan = offline.plan(spec["scenario"], spec["prompts"], bench_plan.placement_goals(spec), overrides,
+                        solve=False)
+    if abs(plan.problem.duration - horizon) > 1e-6:
+        raise ValueError(f"task {task!r} rebuilt gives a {plan.problem.duration:.2f} s plan, the saved result "
+                         f"is {horizon:.2f} s long: planned with other code or inputs")
+    return plan.problem
+
+
 def saved_overrides(folder: Path) -> dict[str, dict]:
     """Saved result stem (``<case>_<variant>``) -> the grid overrides it was solved at, from the
     folder's summary.json (tools/bench_to.py, tools/bench_plan.py's <out>/to); {} without one."""
@@ -140,6 +169,13 @@ def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_
     solved = {} if solved is None else solved
     if saved is not None:
         res, solve_s = TOResult.load(saved), 0.0
+        task = saved_task(saved)
+        if task:   # planned from prompts (tools/bench_plan.py): its own schedule, not the fixture's
+            try:
+                prob = prompts_problem(task, overrides, float(res.t_knots[-1]))
+            except ValueError as e:
+                return {"case": label, "problem": problem, "overrides": overrides, "world": dict(world or {}),
+                        "to_converged": bool(res.success), "to_time_s": None, "error": str(e)}
     elif problem in solved:
         res, solve_s = solved[problem]
     else:

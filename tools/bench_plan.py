@@ -53,20 +53,25 @@ def variant_options(task: dict, variant: str, max_iterations: int | None):
     return opt if max_iterations is None else opt.replaced(max_iterations=max_iterations)
 
 
+def placement_goals(task: dict) -> dict:
+    """The task file's placement goals, by object (what the plan service gets)."""
+    from lomanip_to.problem import PlacementGoal
+
+    return {g["object"]: PlacementGoal(g["object"], tuple(g["position"]), float(g.get("yaw", 0.0)))
+            for g in task.get("placement_goals", [])}
+
+
 def run_case(task: dict, overrides: dict, solve: bool, variants: list[str], max_iterations: int | None,
-             out: Path | None = None) -> dict:
+             out: Path | None = None, task_name: str = "") -> dict:
     from dataclasses import replace
 
     from bench_to import progress_printer   # tools/ is on sys.path when run as a script
     from lomanip_planner import offline
     from lomanip_to import solver
-    from lomanip_to.problem import PlacementGoal
 
-    goals = {g["object"]: PlacementGoal(g["object"], tuple(g["position"]), float(g.get("yaw", 0.0)))
-             for g in task.get("placement_goals", [])}
     row: dict = {"scenario": task["scenario"], "overrides": overrides}
     try:
-        plan = offline.plan(task["scenario"], task["prompts"], goals, overrides, solve=False)
+        plan = offline.plan(task["scenario"], task["prompts"], placement_goals(task), overrides, solve=False)
     except Exception as exc:  # noqa: BLE001 - a benchmark reports every failure and goes on
         row["error"] = f"{type(exc).__name__}: {exc}"
         return row
@@ -97,7 +102,8 @@ def run_case(task: dict, overrides: dict, solve: bool, variants: list[str], max_
                 res.save(out / f"{name}_{v}.npz")
                 saved = json.loads((out / "summary.json").read_text()) if (out / "summary.json").is_file() else {"rows": []}
                 saved["rows"] = [r for r in saved["rows"] if (r["case"], r["variant"]) != (name, v)]
-                saved["rows"].append({"case": name, "variant": v, "overrides": overrides})
+                # the task lets tools/bench_exec.py rebuild the plan's contact schedule
+                saved["rows"].append({"case": name, "variant": v, "overrides": overrides, "task": task_name})
                 (out / "summary.json").write_text(json.dumps(saved, indent=1))
             row["to"][v] = {"converged": s.converged, "success": bool(res.success), "iterations": s.iterations,
                             "wall_s": time.perf_counter() - t0, "peak_mb": s.peak_memory_mb,
@@ -124,7 +130,7 @@ def main() -> int:
         cases = cases[: args.cases] if args.cases else cases
         for ov in cases:
             print(f"{name} {ov}", flush=True)
-            row = run_case(task, ov, args.solve, args.variants, args.max_iterations, args.out / "to")
+            row = run_case(task, ov, args.solve, args.variants, args.max_iterations, args.out / "to", name)
             row["task"] = name
             rows.append(row)
             if "error" in row:
