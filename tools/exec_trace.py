@@ -246,6 +246,9 @@ def main() -> int:
         overrides = bench_exec.saved_overrides(args.npz.parent).get(args.npz.stem, {})
         prob = fixtures.load_problem(problem, overrides)
         res = TOResult.load(args.npz)
+        task = bench_exec.saved_task(args.npz)
+        if task:   # planned from prompts (tools/bench_plan.py): its own contact schedule
+            prob = bench_exec.prompts_problem(task, overrides, float(res.t_knots[-1]))
         if res.t is None:
             res.densify()
         traj = from_to_result(res, prob.phases)
