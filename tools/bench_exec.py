@@ -83,12 +83,17 @@ def cases(args) -> list[tuple[str, str, dict, Path | None]]:
 
 
 def saved_task(saved: Path) -> str:
-    """The task file a saved result was planned from (tools/bench_plan.py's <out>/to/summary.json),
-    or "" for a fixture's result."""
+    """The task file a saved result was planned from (tools/bench_plan.py's <out>/to/summary.json;
+    for results saved before it recorded one, the task its ``<scenario>_prompts_`` name gives, where
+    such a task file exists), or "" for a fixture's result."""
     summary = saved.parent / "summary.json"
     rows = json.loads(summary.read_text()) if summary.is_file() else {}
     rows = rows.get("rows", []) if isinstance(rows, dict) else []
-    return next((r.get("task") or "" for r in rows if f"{r['case']}_{r['variant']}" == saved.stem), "")
+    task = next((r.get("task") or "" for r in rows if f"{r['case']}_{r['variant']}" == saved.stem), "")
+    if not task and "_prompts_" in saved.stem:
+        guess = saved.stem.split("_prompts_")[0]
+        task = guess if (ROOT / "ros_ws/config/tasks" / f"{guess}.yaml").is_file() else ""
+    return task
 
 
 def prompts_problem(task: str, overrides: dict, horizon: float):

@@ -23,6 +23,9 @@ def test_the_task_of_a_saved_result_comes_from_its_summary(tmp_path):
     assert bench_exec.saved_task(tmp_path / "s1_basket_prompts_box_mass2.5_box_yaw0_AllKeyframe.npz") == "s1_basket"
     assert bench_exec.saved_task(tmp_path / "s1_basket_mass2.5_yaw0_all.npz") == ""   # a fixture's
     assert bench_exec.saved_task(tmp_path / "elsewhere" / "x_all.npz") == ""
+    # saved before bench_plan recorded its task: the name gives it, if such a task file exists
+    assert bench_exec.saved_task(tmp_path / "elsewhere" / "s2_trolley_prompts_box_mass5_AllKeyframe.npz") == "s2_trolley"
+    assert bench_exec.saved_task(tmp_path / "elsewhere" / "nosuchtask_prompts_box_mass5_AllKeyframe.npz") == ""
 
 
 def test_a_plan_from_prompts_gets_its_own_schedule_and_a_wrong_horizon_is_refused():
