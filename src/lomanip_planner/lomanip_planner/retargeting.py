@@ -96,8 +96,11 @@ _PARKED = (0.0, 0.0, -100.0)
 IK_STALL_WINDOW = 10
 IK_STALL_TOLERANCE = 1e-3
 
-#: weight of the pelvis height prior (hands 100-1000, feet 1000, base orientation 5, posture 0.01)
-PELVIS_HEIGHT_COST = 3.0
+#: weight of the pelvis height prior (hands 100-1000, feet 1000, base orientation 5, posture 0.01).
+#: At 3 (until session 52) it lost to the hands: S1's generated pick and place squatted at 0.21 /
+#: 0.20 m (the person at 49 % of its leg, the fixture's pick 0.31 m); at 30 they keep 0.36 / 0.39 m
+#: and S1 from prompts converges (docs/planner_s1.md, session 52)
+PELVIS_HEIGHT_COST = 30.0
 #: more than this fraction of the leg above the person's pelvis height the pelvis is pulled down
 #: (weight PELVIS_CEILING_COST); None (the default): no ceiling. Measured, not yet on: S2's place,
 #: demonstrated in a squat (74 % of the leg), stands the G1 at 0.77 m bent over the deck with its
