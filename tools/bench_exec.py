@@ -174,13 +174,6 @@ def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_
     solved = {} if solved is None else solved
     if saved is not None:
         res, solve_s = TOResult.load(saved), 0.0
-        task = saved_task(saved)
-        if task:   # planned from prompts (tools/bench_plan.py): its own schedule, not the fixture's
-            try:
-                prob = prompts_problem(task, overrides, float(res.t_knots[-1]))
-            except ValueError as e:
-                return {"case": label, "problem": problem, "overrides": overrides, "world": dict(world or {}),
-                        "to_converged": bool(res.success), "to_time_s": None, "error": str(e)}
     elif problem in solved:
         res, solve_s = solved[problem]
     else:
@@ -191,6 +184,13 @@ def run_case(label: str, problem: str, overrides: dict, saved: Path | None, out_
         res.densify()
     row = {"case": label, "problem": problem, "overrides": overrides, "world": dict(world or {}),
            "to_converged": bool(res.success), "to_time_s": round(solve_s, 1) if saved is None else None}
+    task = saved_task(saved) if saved is not None else ""
+    try:
+        if task:   # planned from prompts (tools/bench_plan.py): its own schedule, not the fixture's
+            prob = prompts_problem(task, overrides, float(res.t_knots[-1]))
+    except ValueError as e:
+        row.update(error=str(e))
+        return row
     try:
         traj = from_to_result(res, prob.phases)
         sim, scenario = plan_world(problem, overrides, prob, traj.qpos(0), world)

@@ -244,11 +244,10 @@ def main() -> int:
         problem = args.problem or bench_exec._problem_of(args.npz.stem)
         # the grid point it was solved at (a plan traced in the nominal world runs in the wrong scene)
         overrides = bench_exec.saved_overrides(args.npz.parent).get(args.npz.stem, {})
-        prob = fixtures.load_problem(problem, overrides)
         res = TOResult.load(args.npz)
-        task = bench_exec.saved_task(args.npz)
-        if task:   # planned from prompts (tools/bench_plan.py): its own contact schedule
-            prob = bench_exec.prompts_problem(task, overrides, float(res.t_knots[-1]))
+        task = bench_exec.saved_task(args.npz)   # planned from prompts: its own contact schedule
+        prob = (bench_exec.prompts_problem(task, overrides, float(res.t_knots[-1])) if task
+                else fixtures.load_problem(problem, overrides))
         if res.t is None:
             res.densify()
         traj = from_to_result(res, prob.phases)
