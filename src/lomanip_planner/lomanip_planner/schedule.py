@@ -44,6 +44,7 @@ from lomanip_to.problem import FLOOR, STANCE, WALKING, ContactPhase, ContactSpec
 from lomanip_to.discretize import obj_prims_world, outside_top
 from lomanip_to.route import Footprint, footprint_of, point_along, route_length, shortest_route, turns, walking_heading
 
+from .footsteps import StepLimits, Walk, plan_rounds, uniform_rounds
 from .retargeting import FEET, HANDS, LimbTarget
 
 
@@ -298,22 +299,30 @@ class _Builder:
         yaw0 = _stance_yaw(self.stance.left, self.stance.right)
         end = {f: targets[f][0] if f in targets else self.stance.foot(f) for f in FEET}
         yaw1 = yaw0 + math.remainder(_stance_yaw(end["left_foot"], end["right_foot"]) - yaw0, 2 * math.pi)
-        # lead with the foot that has further to go; alternate feet, each moving 1/n of its way
+        # lead with the foot that has further to go; alternate feet
         order = sorted(moving, key=lambda f: -moves[f])
+        if len(moving) == 2 and len(route) == 2:   # rounds of steps a leg can make (lomanip_planner.footsteps)
+            walk = Walk(route, starts, end, yaw0, yaw1)
+            rounds = plan_rounds(walk, order[0], StepLimits(length=tm.max_step_length), n)
+        else:
+            walk, rounds = None, [(s, order[0]) for s in uniform_rounds(n)]
         # a long walk far off the robot's heading turns to walk forwards (lomanip_to.route.turns): the
         # footholds lie beside the route, across the heading the TO's nominal turns with
         turning = turns(route, yaw0, yaw1)
-        for i in range(1, n + 1):
-            for f in order:
+        n = len(rounds)
+        for i, (s, lead) in enumerate(rounds, start=1):
+            for f in ([lead, *[g for g in moving if g != lead]] if lead in moving else order):
                 other = "right_foot" if f == "left_foot" else "left_foot"
                 up = i == n and (targets[f][1] != self.stance.surface(f)
                                  or abs(targets[f][0][2] - starts[f][2]) > 0.02)
                 self.add(tm.step_up if up else tm.step, subtask, WALKING, stance_foot=other, objects=objects)
-                pos = starts[f] + (i / n) * (targets[f][0] - starts[f])
-                if i < n and (turning or len(route) > 2):   # turning, or round an obstacle: beside the route
-                    yaw = walking_heading(route, i / n, yaw0, yaw1) if turning else yaw0 + (i / n) * (yaw1 - yaw0)
+                pos = starts[f] + s * (targets[f][0] - starts[f])
+                if i < n and walk is not None:
+                    pos[:2] = walk.foot(f, s)
+                elif i < n and (turning or len(route) > 2):   # one foot: beside the route
+                    yaw = walking_heading(route, s, yaw0, yaw1) if turning else yaw0 + s * (yaw1 - yaw0)
                     side = 1.0 if f == "left_foot" else -1.0
-                    pos[:2] = point_along(route, i / n) + side * half_width * np.array([-math.sin(yaw), math.cos(yaw)])
+                    pos[:2] = point_along(route, s) + side * half_width * np.array([-math.sin(yaw), math.cos(yaw)])
                 surface = targets[f][1] if i == n else self.stance.surface(f)
                 if i < n:   # intermediate footholds stay on the surface the foot started on, off objects
                     pos[2] = starts[f][2]
