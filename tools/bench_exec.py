@@ -102,7 +102,7 @@ def prompts_problem(task: str, overrides: dict, horizon: float):
     result's (the result is from older code or another task).
 
     Why: the controller takes its contact states from the plan's schedule, and a plan from prompts
-    has its own (S1's: 19.4 s, 41 phases), not the fixture's (18.2 s). Before session 52 these
+    has its own (S1's: 22.2 s, 49 phases since session 53), not the fixture's (18.2 s). Before session 52 these
     results were executed with the fixture's schedule."""
     import bench_plan   # tools/ is on sys.path when run as a script
     from lomanip_planner import offline

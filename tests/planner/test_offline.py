@@ -103,3 +103,26 @@ def test_s1_grabs_the_basket_by_the_outer_faces_of_its_walls_near_the_robot(s1_p
         assert np.allclose(c.normal, [0.0, side, 0.0], atol=1e-6)        # outward, away from the basket
         assert side * offset[1] > 0.199                                   # on the outer face (y +- 0.2)
         assert -0.13 < offset[0] < -0.03                                  # near half (the robot at -x)
+
+
+def test_s1_carry_nominal_turns_the_base_with_the_feet(s1_plan):
+    """The TO's walking nominal (its walking cost's reference) follows the footholds' headings from
+    the planner's footsteps: over S1's carry the base faces where its feet point and stands over
+    them (session 52: the route nominal turned 0.5 rad behind the feet and stood 18 cm behind
+    them)."""
+    from lomanip_to.discretize import ProblemData
+    from lomanip_to.problem import WALKING
+    from lomanip_to.solver import default_model
+
+    prob = s1_plan.problem
+    assert all(c.heading is not None for ph in prob.phases for f, c in ph.contacts.items() if f.endswith("foot"))
+    data = ProblemData(prob, default_model())
+    X = data._keyframe_nominal()
+    walk = [k for k in range(data.grid.K) if prob.phases[data.grid.phase[k]].phase_type == WALKING
+            and prob.phases[data.grid.phase[k]].subtask_index == 1
+            and X[k, 2] > 0.75]    # upright (the place squat's pelvis offset blends in at the end)
+    assert len(walk) > 20
+    for k in walk:
+        mid, heading = data._feet_at(float(data.grid.t[k]))
+        assert abs(np.remainder(X[k, 5] - heading + np.pi, 2 * np.pi) - np.pi) < 0.05
+        assert np.linalg.norm(X[k, :2] - mid) < 0.05

@@ -259,3 +259,31 @@ def test_options_round_trip_the_hand_and_warm_start_values(model, name, value):
     prob.options = prob.options.replaced(**{name: value})
     req = conv.request_from_problem(prob, model.joint_names)
     assert getattr(conv.options_from_msg(req.options), name) == value
+
+
+def test_foot_headings_round_trip_and_nan_is_none(model):
+    from dataclasses import replace
+
+    prob = load_problem("case_one_step", model=model)
+    ph0 = prob.phases[0]
+    prob.phases[0] = replace(ph0, contacts={**ph0.contacts,
+                                            "left_foot": replace(ph0.contacts["left_foot"], heading=0.3)})
+    req = conv.request_from_problem(prob, model.joint_names)
+    back = conv.problem_from_request(req, model.joint_names)
+    assert back.phases[0].contacts["left_foot"].heading == pytest.approx(0.3)
+    assert back.phases[0].contacts["right_foot"].heading is None        # NaN on the wire
+    assert all(c.heading is None for ph in back.phases[1:] for c in ph.contacts.values())   # empty list
+    req.contact_schedule.phases[0].contact_headings = [0.3]
+    with pytest.raises(ProblemError, match="contact_headings"):
+        conv.problem_from_request(req, model.joint_names)
+
+
+def test_a_hand_heading_or_an_infinite_one_is_refused(model):
+    from dataclasses import replace
+
+    prob = load_problem("case_one_step", model=model)
+    ph0 = prob.phases[0]
+    prob.phases[0] = replace(ph0, contacts={**ph0.contacts,
+                                            "left_foot": replace(ph0.contacts["left_foot"], heading=float("inf"))})
+    with pytest.raises(ProblemError, match="non-finite"):
+        validate_problem(prob, model)

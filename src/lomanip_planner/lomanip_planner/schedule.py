@@ -123,9 +123,16 @@ class Stance:
     right: np.ndarray
     left_surface: str = FLOOR
     right_surface: str = FLOOR
+    #: foot -> rad about z where its sole points, once a walk placed it (else the pair's heading)
+    headings: dict = field(default_factory=dict)
 
     def foot(self, limb: str) -> np.ndarray:
         return self.left if limb == "left_foot" else self.right
+
+    def heading(self, limb: str) -> float:
+        if limb in self.headings:
+            return float(self.headings[limb])
+        return _stance_yaw(self.left, self.right)
 
     def surface(self, limb: str) -> str:
         return self.left_surface if limb == "left_foot" else self.right_surface
@@ -264,7 +271,8 @@ class _Builder:
         out = {}
         for f in FEET:
             if only is None or f == only:
-                out[f] = ContactSpec(f, self.stance.surface(f), tuple(self.stance.foot(f)), (0.0, 0.0, 1.0))
+                out[f] = ContactSpec(f, self.stance.surface(f), tuple(self.stance.foot(f)), (0.0, 0.0, 1.0),
+                                     self.stance.heading(f))
         return out
 
     def add(self, duration: float, subtask: int, kind: str = STANCE, stance_foot: str | None = None,
@@ -317,12 +325,16 @@ class _Builder:
                                  or abs(targets[f][0][2] - starts[f][2]) > 0.02)
                 self.add(tm.step_up if up else tm.step, subtask, WALKING, stance_foot=other, objects=objects)
                 pos = starts[f] + s * (targets[f][0] - starts[f])
+                heading = yaw1
                 if i < n and walk is not None:
-                    pos[:2] = walk.foot(f, s)
-                elif i < n and (turning or len(route) > 2):   # one foot: beside the route
-                    yaw = walking_heading(route, s, yaw0, yaw1) if turning else yaw0 + s * (yaw1 - yaw0)
-                    side = 1.0 if f == "left_foot" else -1.0
-                    pos[:2] = point_along(route, s) + side * half_width * np.array([-math.sin(yaw), math.cos(yaw)])
+                    pos[:2], heading = walk.foot(f, s), walk.heading(s)
+                elif i < n:
+                    heading = walking_heading(route, s, yaw0, yaw1) if turning else yaw0 + s * (yaw1 - yaw0)
+                    if turning or len(route) > 2:   # beside the route
+                        side = 1.0 if f == "left_foot" else -1.0
+                        pos[:2] = point_along(route, s) + side * half_width * np.array([-math.sin(heading),
+                                                                                        math.cos(heading)])
+                self.stance.headings[f] = float(heading)
                 surface = targets[f][1] if i == n else self.stance.surface(f)
                 if i < n:   # intermediate footholds stay on the surface the foot started on, off objects
                     pos[2] = starts[f][2]

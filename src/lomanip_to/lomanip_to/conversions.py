@@ -5,6 +5,7 @@ The only module of lomanip_to that touches message classes. Conventions on the m
   shifted by inertia.com here (primitives move the opposite way).
 * ContactPhase.contact_poses: the contact frame's z axis is the outward surface normal. A pose
   whose quaternion is all zeros means "position free": the TO chooses the foothold (feet only).
+  contact_headings (empty, or one per limb): a foot's heading at its foothold, NaN = none.
 * SolidPrimitive SPHERE and CONE are passed as their bounding box (the TO handles boxes and
   cylinders); named simplification.
 * A ROLLING object's rear axle is taken from its wheels: the mean position of the two cylinder
@@ -134,9 +135,10 @@ def schedule_from_msg(schedule) -> list[P.ContactPhase]:
     for i, ph in enumerate(schedule.phases):
         where = f"contact_schedule.phases[{i}]"
         n = len(ph.limbs_in_contact)
-        if len(ph.contact_object_ids) != n or (ph.contact_poses and len(ph.contact_poses) != n):
-            raise P.ProblemError(P.INVALID_REQUEST, "limbs_in_contact, contact_object_ids and contact_poses "
-                                 "must have the same length", where)
+        if (len(ph.contact_object_ids) != n or (ph.contact_poses and len(ph.contact_poses) != n)
+                or (len(ph.contact_headings) and len(ph.contact_headings) != n)):
+            raise P.ProblemError(P.INVALID_REQUEST, "limbs_in_contact, contact_object_ids, contact_poses and "
+                                 "contact_headings must have the same length", where)
         contacts = {}
         for j, (limb, oid) in enumerate(zip(ph.limbs_in_contact, ph.contact_object_ids)):
             if limb in contacts:
@@ -148,7 +150,8 @@ def schedule_from_msg(schedule) -> list[P.ContactPhase]:
                 if np.linalg.norm(q) > 1e-9:
                     position = (pose.position.x, pose.position.y, pose.position.z)
                     normal = tuple(_rot(q / np.linalg.norm(q))[:, 2])
-            contacts[limb] = P.ContactSpec(limb, oid, position, normal)
+            heading = float(ph.contact_headings[j]) if len(ph.contact_headings) else math.nan
+            contacts[limb] = P.ContactSpec(limb, oid, position, normal, None if math.isnan(heading) else heading)
         objects = {}
         for m in ph.object_motions:
             if m.mode not in P.OBJECT_MODES:
@@ -313,9 +316,12 @@ def schedule_msg(phases: list[P.ContactPhase]):
     for ph in phases:
         m = ContactPhaseMsg(phase_type=ContactPhaseMsg.WALKING if ph.phase_type == P.WALKING else ContactPhaseMsg.STANCE,
                             subtask_index=int(ph.subtask_index), start=s_to_duration(ph.start), end=s_to_duration(ph.end))
+        headed = any(c.heading is not None for c in ph.contacts.values())
         for limb, c in ph.contacts.items():
             m.limbs_in_contact.append(limb)
             m.contact_object_ids.append(c.object_id)
+            if headed:
+                m.contact_headings.append(float("nan") if c.heading is None else float(c.heading))
             if c.position is None:
                 m.contact_poses.append(Pose(orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=0.0)))
             else:

@@ -609,6 +609,7 @@ class ProblemData:
         h_stand = self._sole_height(stand)
         X = np.tile(anchors[-1][1], (len(t), 1))
         self.routes = [self._base_route(ta, xa, xb) for (ta, xa), (_, xb) in zip(anchors, anchors[1:])]
+        blends: dict[int, tuple] = {}   # knot -> (anchor interval, wa, wb, ws)
         for k, tk in enumerate(t):
             for i in range(len(anchors) - 1):
                 (ta, xa), (tb, xb) = anchors[i], anchors[i + 1]
@@ -621,12 +622,14 @@ class ProblemData:
                     wa, wb = wa / (wa + wb), wb / (wa + wb)
                 ws = 1.0 - wa - wb
                 x = wa * xa + wb * xb + ws * stand
+                blends[k] = (i, wa, wb, ws)
                 x[[0, 1]] = point_along(self.routes[i], s)
                 x[5] = walking_heading(self.routes[i], s, xa[5], xb[5])  # a long sideways walk turns
                 sup = (1 - s) * h[i] + s * h[i + 1]
                 x[2] = wa * xa[2] + wb * xb[2] + ws * (stand[2] - h_stand + sup)
                 X[k] = x
                 break
+        self._follow_the_feet(X, anchors, blends, stand)
         ta, xa = anchors[-1]
         if ta < t[-1]:
             hands_free = [all(self.contact(k, hnd) is None for hnd in HANDS) for k in range(len(t))]
@@ -640,6 +643,76 @@ class ProblemData:
                 x[2] = (1 - ws) * xa[2] + ws * (stand[2] - h_stand + h[-1])
                 X[k] = x
         return X
+
+    def _feet_at(self, t: float):
+        """(mid-feet xy, mean sole heading) at time ``t`` from the schedule's footholds, a swing
+        foot sliding from its last foothold to its next over the step; None where a foothold has
+        no position or heading (the hand-written fixtures) or ``t`` is outside the schedule."""
+        phases = self.prob.phases
+        if not phases or t < phases[0].start - 1e-9 or t > phases[-1].end + 1e-9:
+            return None
+        p = next((i for i, ph in enumerate(phases) if ph.start - 1e-9 <= t < ph.end - 1e-9), len(phases) - 1)
+        ph = phases[p]
+
+        def held(c):
+            return c is not None and c.position is not None and c.heading is not None
+
+        pts, hds = [], []
+        for f in FEET:
+            c = ph.contacts.get(f)
+            if held(c):
+                pts.append(np.asarray(c.position, float)[:2])
+                hds.append(float(c.heading))
+                continue
+            if ph.phase_type != WALKING or p == 0 or p + 1 >= len(phases):
+                return None
+            a, b = phases[p - 1].contacts.get(f), phases[p + 1].contacts.get(f)
+            if not (held(a) and held(b)):
+                return None
+            u = (t - ph.start) / max(ph.end - ph.start, 1e-9)
+            pts.append((1 - u) * np.asarray(a.position, float)[:2] + u * np.asarray(b.position, float)[:2])
+            hds.append(a.heading + u * math.remainder(b.heading - a.heading, 2 * math.pi))
+        return 0.5 * (pts[0] + pts[1]), hds[0] + 0.5 * math.remainder(hds[1] - hds[0], 2 * math.pi)
+
+    def _follow_the_feet(self, X: np.ndarray, anchors: list, blends: dict, stand: np.ndarray) -> None:
+        """Base xy and heading of the knots between two anchors from the schedule's footholds where
+        every foothold there has a heading (the planner's footsteps; the fixtures have none): the
+        mid-feet point plus the base's offset from it, and the feet's mean heading plus the base's
+        heading offset, the anchors' and the standing posture's offsets blended as the posture is.
+
+        Why: the route nominal paces the base by walking time and turns it over 40 % of the route,
+        while the footsteps turn in their first small steps: the walking cost (``w_wk_base``) held
+        S1's carrying base 0.5 rad behind its feet, which stood 0.38 m apart, and the executed robot
+        fell (session 53). Off the route it also kept an upright robot 18 cm behind its feet where
+        the squatting keyframe's pelvis was."""
+        t = self.grid.t
+
+        def frame_offset(x, feet):
+            mid, h = feet
+            c, s = math.cos(h), math.sin(h)
+            d = np.asarray(x[:2], float) - mid
+            return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]]), math.remainder(float(x[5]) - h, 2 * math.pi)
+
+        limbs = self.model.numeric(stand)["limbs"]
+        feet_stand = (0.5 * (np.asarray(limbs[FEET[0]][0], float)[:2] + np.asarray(limbs[FEET[1]][0], float)[:2]),
+                      float(stand[5]))
+        d_stand, _ = frame_offset(stand, feet_stand)
+        for i in range(len(anchors) - 1):
+            knots = [k for k, b in blends.items() if b[0] == i]
+            (ta, xa), (tb, xb) = anchors[i], anchors[i + 1]
+            fa, fb = self._feet_at(ta), self._feet_at(tb)
+            feet = {k: self._feet_at(float(t[k])) for k in knots}
+            if fa is None or fb is None or any(f is None for f in feet.values()):
+                continue
+            (da, ha), (db, hb) = frame_offset(xa, fa), frame_offset(xb, fb)
+            for k in knots:
+                _, wa, wb, ws = blends[k]
+                mid, h = feet[k]
+                d = wa * da + wb * db + ws * d_stand
+                c, s = math.cos(h), math.sin(h)
+                X[k, 0:2] = mid + np.array([c * d[0] - s * d[1], s * d[0] + c * d[1]])
+                yaw = h + wa * ha + wb * hb
+                X[k, 5] = X[k, 5] + math.remainder(yaw - X[k, 5], 2 * math.pi)
 
     def _hold_window(self, t_kf: float) -> tuple:
         """(start, end) times around a keyframe in which the robot is in the keyframe's posture:

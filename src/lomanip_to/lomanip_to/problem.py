@@ -140,6 +140,10 @@ class ContactSpec:
     object_id: str
     position: tuple
     normal: tuple = (0.0, 0.0, 1.0)
+    #: rad about the world z: where a foot's sole points (its forward axis) at this foothold; None:
+    #: free. Set by the planner's footsteps; the TO's walking nominal turns the base with the feet
+    #: (discretize, session 53), it does not constrain the sole's yaw
+    heading: float | None = None
 
 
 @dataclass
@@ -706,6 +710,10 @@ def validate_problem(prob: Problem, model=None) -> None:
             check_obj(c.object_id, f"{w}.contacts[{limb}]")
             if c.position is not None:
                 _finite(c.position, 3, f"{w}.contacts[{limb}].position")
+            if c.heading is not None:
+                _finite((c.heading,), 1, f"{w}.contacts[{limb}].heading")
+                if limb not in FEET:
+                    raise ProblemError(INVALID_REQUEST, "only a foot contact has a heading", f"{w}.contacts[{limb}]")
             n = _finite(c.normal, 3, f"{w}.contacts[{limb}].normal")
             if np.linalg.norm(n) < 1e-6:
                 raise ProblemError(INVALID_REQUEST, "zero contact normal", f"{w}.contacts[{limb}]")
