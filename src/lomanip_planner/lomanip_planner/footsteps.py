@@ -41,8 +41,8 @@ MAX_ROUNDS = 16
 class StepLimits:
     """Where the swing foot's sole centre may land, in the stance foot's frame (heading along x).
 
-    G1 values: the hip's reach and the legs' width (the TO's sole patch is 0.05-0.06 m wide, 0.17 m long); the
-    ``length`` is the schedule's ``max_step_length``."""
+    G1 values: the hip's reach and the legs' width (the TO's sole patch is 0.05-0.06 m wide,
+    0.17 m long); the ``length`` is the schedule's ``max_step_length``."""
 
     forward: tuple[float, float] = (-0.12, 0.35)   # m along the stance foot
     lateral: tuple[float, float] = (0.16, 0.34)    # m across it, towards the swing foot's side
