@@ -308,18 +308,18 @@ class _Builder:
         end = {f: targets[f][0] if f in targets else self.stance.foot(f) for f in FEET}
         yaw1 = yaw0 + math.remainder(_stance_yaw(end["left_foot"], end["right_foot"]) - yaw0, 2 * math.pi)
         # lead with the foot that has further to go; alternate feet
-        order = sorted(moving, key=lambda f: -moves[f])
+        first = max(moving, key=lambda f: moves[f])
         if len(moving) == 2 and len(route) == 2:   # rounds of steps a leg can make (lomanip_planner.footsteps)
             walk = Walk(route, starts, end, yaw0, yaw1)
-            rounds = plan_rounds(walk, order[0], StepLimits(length=tm.max_step_length), n)
+            rounds = plan_rounds(walk, first, StepLimits(length=tm.max_step_length), n)
         else:
-            walk, rounds = None, [(s, order[0]) for s in uniform_rounds(n)]
+            walk, rounds = None, [(s, first) for s in uniform_rounds(n)]
         # a long walk far off the robot's heading turns to walk forwards (lomanip_to.route.turns): the
         # footholds lie beside the route, across the heading the TO's nominal turns with
         turning = turns(route, yaw0, yaw1)
         n = len(rounds)
         for i, (s, lead) in enumerate(rounds, start=1):
-            for f in ([lead, *[g for g in moving if g != lead]] if lead in moving else order):
+            for f in [lead, *[g for g in moving if g != lead]]:
                 other = "right_foot" if f == "left_foot" else "left_foot"
                 up = i == n and (targets[f][1] != self.stance.surface(f)
                                  or abs(targets[f][0][2] - starts[f][2]) > 0.02)
