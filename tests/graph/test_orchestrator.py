@@ -129,7 +129,7 @@ def test_ctrl_c_stops_everything_cleanly(tmp_path):
     assert not any(os.path.exists(f"/proc/{p}") and open(f"/proc/{p}/stat").read().split()[2] != "Z"
                    for p in children)
     shm_after = {f for f in os.listdir("/dev/shm") if f.startswith("fastrtps_")}
-    assert shm_after <= shm_before | _shm_of_live_processes(), shm_after - shm_before
+    assert shm_after <= shm_before | _shm_of_live_processes(), (shm_after - shm_before, text[-3000:])
 
 
 def _shm_of_live_processes() -> set[str]:

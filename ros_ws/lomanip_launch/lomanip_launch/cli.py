@@ -139,6 +139,7 @@ def run_graph(graph: ProcessGraph, duration: float | None, ready_timeout: float 
         stop["sig"] = signum
 
     previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    graph.watch_shm()   # before our probe's participant: shutdown cleans what it leaves too
     names, close_probe = _ros_node_names()
     code = 0
     try:

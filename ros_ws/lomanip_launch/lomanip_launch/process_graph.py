@@ -116,18 +116,27 @@ class ProcessGraph:
         self.log_dir = log_dir
         self.echo = echo
         self.nodes: list[RunningNode] = []
-        self._shm_before: set[str] = set()
+        self._shm_before: set[str] | None = None
 
     def _say(self, text: str) -> None:
         if self.echo is not None:
             print(f"[lomanip] {text}", file=self.echo, flush=True)
 
-    def start(self) -> None:
-        self.log_dir.mkdir(parents=True, exist_ok=True)
+    def watch_shm(self) -> None:
+        """Remove stale Fast DDS files of earlier runs, then note which exist: the rest are ours.
+
+        Call it before this process makes its own participant (the orchestrator's probe) so that
+        shutdown also cleans what that participant leaves; ``start`` calls it if nobody did.
+        """
         removed = remove_stale_shm()
         if removed:
             self._say(f"removed {len(removed)} stale Fast DDS shared-memory file(s) left by earlier runs")
         self._shm_before = _shm_files()
+
+    def start(self) -> None:
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        if self._shm_before is None:
+            self.watch_shm()
         for spec in self.specs:
             log_path = self.log_dir / f"{spec.name}.log"
             log = open(log_path, "w", encoding="utf-8")  # noqa: SIM115 - closed by the child exiting
@@ -199,7 +208,20 @@ class ProcessGraph:
                 self._say(f"sent {signal.Signals(sig).name} to {', '.join(stubborn)}")
         self._cleanup_shm()
 
-    def _cleanup_shm(self) -> None:
-        removed = remove_stale_shm(min_age=0.0, names=_shm_files() - self._shm_before)
+    def _cleanup_shm(self, settle: float = 2.0) -> None:
+        """Remove the files created since ``watch_shm`` that no live process maps any more.
+
+        Every node has exited, so what they made is stale; a participant elsewhere on the domain
+        may still map a node's segment for a moment after it left (CI once found one left behind
+        after a clean Ctrl-C), so files still in use are retried for ``settle`` seconds.
+        """
+        before = self._shm_before or set()
+        removed: list[str] = []
+        deadline = time.monotonic() + settle
+        while True:
+            removed += remove_stale_shm(min_age=0.0, names=_shm_files() - before)
+            if not (_shm_files() - before) or time.monotonic() >= deadline:
+                break
+            time.sleep(0.2)
         if removed:
             self._say(f"removed {len(removed)} stale Fast DDS shared-memory file(s)")
