@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
 import sys
 import time
 
@@ -82,3 +83,34 @@ def test_stale_shared_memory_is_removed_and_mapped_files_are_kept():
         assert os.path.exists(fresh)  # just created: perhaps a participant that has not mapped it yet
     os.unlink(live)
     os.unlink(fresh)
+
+
+def test_shutdown_removes_a_file_once_its_last_reader_lets_go(tmp_path):
+    """A Fast DDS file made during the graph's run that another process still maps at shutdown
+    goes once that process lets go (within the settle time); files from before ``watch_shm`` stay."""
+    import mmap
+
+    graph = ProcessGraph([NodeSpec("a", SLEEPER)], dict(os.environ), tmp_path, echo=None)
+    before = f"/dev/shm/fastrtps_lomanip_test_before_{os.getpid()}"
+    ours = f"/dev/shm/fastrtps_lomanip_test_ours_{os.getpid()}"
+    try:
+        with open(before, "wb") as f:
+            f.write(b"\0" * 4096)
+        graph.watch_shm()
+        with open(ours, "wb") as f:
+            f.write(b"\0" * 4096)
+        reader = subprocess.Popen([sys.executable, "-c",
+                                   "import mmap, time\n"
+                                   f"f = open({ours!r}, 'r+b'); m = mmap.mmap(f.fileno(), 4096)\n"
+                                   "print('mapped', flush=True); time.sleep(0.8)"],
+                                  stdout=subprocess.PIPE, text=True)
+        assert reader.stdout.readline().strip() == "mapped"
+        graph.start()
+        graph.shutdown(grace=2.0)   # the node stops at once; the reader holds `ours` 0.8 s longer
+        assert reader.wait(timeout=10) == 0
+        assert not os.path.exists(ours)
+        assert os.path.exists(before)
+    finally:
+        for path in (before, ours):
+            if os.path.exists(path):
+                os.unlink(path)
