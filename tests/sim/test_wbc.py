@@ -517,8 +517,11 @@ def test_grasp_forces_chosen_by_the_qp_keep_their_sum_and_stay_in_their_pyramids
     assert seen > 50
     assert squeezed > 10.0  # the QP squeezed less than it was asked to
     assert not sim.has_fallen()
-    fixed, tr = simulation("case_lift_box")  # the same squeeze fed forward as a fixed force: it falls
-    fixed.set_controller(WholeBodyController(fixed.world, tr, WbcGains(grasp_force_in_qp=False, grasp_squeeze_scale=20.0)))
+    # the same squeeze fed forward as a fixed force: it falls (at 2.36 s of 2.40; the self-collision
+    # guard, which is not what this compares, catches that collapsing hip in its last 40 ms: off here)
+    fixed, tr = simulation("case_lift_box")
+    fixed.set_controller(WholeBodyController(fixed.world, tr, WbcGains(grasp_force_in_qp=False, grasp_squeeze_scale=20.0,
+                                                                        guard_rate=0.0)))
     while fixed.time < tr.duration and not fixed.has_fallen():
         fixed.step()
     assert fixed.has_fallen()

@@ -24,6 +24,9 @@ contact whose object has left the hand (not touched for a while, grasp point out
 planned reach) is released until the plan's own release: no hand force, the arm back on the plan's
 posture (``WbcGains.hand_release``).
 
+Barrier rows on qdd (lomanip_sim.self_collision_guard, ``WbcGains.guard_rate``) keep the pelvis off
+the hip-roll and hip-yaw links' meshes, a pair the TO bounds in joint space only.
+
 Named simplifications: the foot moment reference is not tracked (only the net planned foot force;
 the QP distributes the corner forces); the CoM acceleration term J_dot v is neglected (site terms
 use mj_jacDot); contact states come from the schedule, not from touch detection. The QP solver is
@@ -44,6 +47,7 @@ from .robot_model import (FOOT_BODIES, FOOT_CONTACT_POINTS, FOOT_SITES, FOOT_SOL
 from .contact_forces import LimbForceMeter
 from .hand_approach import approach_lift, retreat_lift, smoothstep
 from .hand_detour import Detour, HandBoxProbe, ObjectsAsObstacles, detour, movable_bodies, static_obstacle_geoms
+from .self_collision_guard import GuardRow, SelfCollisionGuard
 from .trajectory import FEET, HANDS, Trajectory
 from .world import World
 
@@ -193,6 +197,13 @@ class WbcGains:
     # Shifting the pelvis reference too made both scenarios fall in their carry. 0: off, 1: full shift
     feet_follow: float = 0.0
     feet_follow_lookahead: float = 0.2  # s
+    # the same shift (as a fraction, like feet_follow) while a stance foot stands on an object of the
+    # plan: a swing foot landing on one aims where it actually is (foot_follows_object), so there the
+    # real foothold is off the plan's by the object's displacement, and the CoM must come with it.
+    # Why: S1's box was set down 5 cm further than planned; the right foot landed on it 5 cm ahead of
+    # its plan, the CoM stayed planned over the heel, and the robot fell stepping up (docs/execution.md,
+    # session 54)
+    feet_follow_on_objects: float = 0.0
     feet_follow_time: float = 0.05  # s, time constant of the shift (first order)
     # grasp force optimisation on a carried object held by two or more hands: the QP chooses the hands'
     # forces, their sum fixed to the net force fed forward (what the object's motion needs) and each
@@ -432,6 +443,14 @@ class WbcGains:
     # the bar along (-0.71, 0, 0.70). 9 of 12 saved push plans executed to success against 8, two
     # falls either way (docs/execution.md, session 24)
     push_feedforward_measured: bool = True
+    # barrier rows keeping the pelvis off the hip-roll and hip-yaw links' meshes
+    # (lomanip_sim.self_collision_guard; rate in 1/s, 0 = off): rows for pairs nearer than
+    # guard_activation (m), kept at least guard_min_distance (m) apart. Why: the plan's hip roll
+    # sits 1-2 mm off the pelvis in deep squats, and S1's lift from prompts jammed the pelvis on the
+    # right hip-roll link with 1.4 kN (docs/execution.md, session 54)
+    guard_rate: float = 10.0
+    guard_activation: float = 0.02
+    guard_min_distance: float = 0.001
 
 
 @dataclass
@@ -576,6 +595,7 @@ class WholeBodyController:
         #: moment (world, N m) the QP put on each hand contact about its site (hand_patch_half)
         self.last_hand_moments: dict[str, np.ndarray] = {}
         self._last_tau = np.zeros(NJ)
+        self.last_qdd = np.zeros(NV)  # the QP's accelerations (base 6, then the joints), last solved step
         self._engaged: dict = {}
         self._last_touch: dict = {}  # hand -> trajectory time its collision box last touched its object
         self._touched: dict = {}  # hand -> object it has touched in its current planned contact
@@ -592,6 +612,9 @@ class WholeBodyController:
         root = int(m.body_rootid[self.pelvis])
         self._robot_bodies = [b for b in range(1, m.nbody) if int(m.body_rootid[b]) == root and m.body_mass[b] > 0]
         self._angmom_prev: tuple[float, np.ndarray] | None = None  # (time, A_L) of the last step
+        self.guard = (SelfCollisionGuard(m, activation=self.g.guard_activation, rate=self.g.guard_rate,
+                                         min_distance=self.g.guard_min_distance) if self.g.guard_rate > 0 else None)
+        self.guard_rows: list[GuardRow] = []  # the self-collision guard's active rows, last step
 
     # ---------------------------------------------------------------------------- references
     def _take_detour(self, limb: str, before: np.ndarray, shifted: np.ndarray, found: list[Detour]) -> np.ndarray:
@@ -1389,11 +1412,14 @@ class WholeBodyController:
         planned = phase.contacts if phase is not None else {f: None for f in FEET}
         contacts = self._release_hands(data, planned, t, i, s) if g.hand_release else planned
         released_w = {limb: self._body_weight(limb, t) for limb in HANDS}  # 0..1 per hand, this step
-        if g.feet_follow > 0 and not after_end:
+        follow = g.feet_follow
+        if any((c := contacts.get(f)) is not None and c.object_id in tr.objects for f in FEET):
+            follow = max(follow, g.feet_follow_on_objects)   # a foot stands on a plan's object
+        if (follow > 0 or np.any(self._feet_shift != 0.0)) and not after_end:
             target = self._feet_follow_target(data, contacts, i, s)
             if target is not None:
                 a = min(m.opt.timestep / g.feet_follow_time, 1.0) if g.feet_follow_time > 0 else 1.0
-                self._feet_shift += a * (g.feet_follow * target - self._feet_shift)
+                self._feet_shift += a * (follow * target - self._feet_shift)
         body_frame_hands = False  # some free hand tracked in the torso frame this step
         dofs = self.dofs
         v = data.qvel[dofs]
@@ -1684,14 +1710,19 @@ class WholeBodyController:
         B, c = Aeq[6:, NJ:], beq[6:]
         Hy = H[NJ:, NJ:] + g.reg_tau * (B.T @ B)
         fy = f[NJ:] - g.reg_tau * (B.T @ c)
-        A_all = np.vstack([Aeq[:6, NJ:], B, Ahand[:, NJ:], Ain[:, NJ:], Amom[:, NJ:], Agrasp[:, NJ:]])
-        upper = np.concatenate([beq[:6], self.limits + c, hand_hi, bu, mlim, grasp_hi])
-        lower = np.concatenate([beq[:6], -self.limits + c, hand_lo, bl, -mlim, grasp_lo])
+        self.guard_rows = self.guard.rows(data, dofs) if self.guard is not None else []
+        Aguard = np.zeros((len(self.guard_rows), nx - NJ))
+        for k, gr in enumerate(self.guard_rows):
+            Aguard[k, :NV] = gr.row   # y starts with qdd
+        guard_lo = np.array([gr.lower for gr in self.guard_rows])
+        A_all = np.vstack([Aeq[:6, NJ:], B, Ahand[:, NJ:], Ain[:, NJ:], Amom[:, NJ:], Agrasp[:, NJ:], Aguard])
+        upper = np.concatenate([beq[:6], self.limits + c, hand_hi, bu, mlim, grasp_hi, np.full(len(guard_lo), 1e30)])
+        lower = np.concatenate([beq[:6], -self.limits + c, hand_lo, bl, -mlim, grasp_lo, guard_lo])
         sense = np.zeros(len(upper), np.int32)
         sense[:6] = 5  # the floating base's rows: equalities
         sense[6 + NJ : 6 + NJ + len(bhand)] = np.where(hand_eq, 5, 0)  # the hands' fed-forward forces
         key = tuple(sorted(by_limb))
-        layout = (key, nx, len(upper))
+        layout = (key, nx, len(upper), tuple(gr.pair for gr in self.guard_rows))
         if self._qp_working_set is not None and self._qp_working_set[0] == layout:
             sense |= self._qp_working_set[1]  # warm start: the last step's active inequalities
         y, _fval, flag, info = daqp.solve(Hy, fy, A_all, upper, lower, sense)
@@ -1708,6 +1739,7 @@ class WholeBodyController:
         if ok:
             tau = np.clip(x[:NJ], -self.limits, self.limits)
             self._last_tau = tau
+            self.last_qdd = y[:NV].copy()
             self.last_forces = {limb: sum(x[NJ + NV + 3 * k : NJ + NV + 3 * k + 3] for k in ks) for limb, ks in by_limb.items()}
             self.last_sole_forces = {limb: x[NJ + NV + 3 * ks[0] : NJ + NV + 3 * ks[-1] + 3].reshape(-1, 3)
                                      for limb, ks in by_limb.items() if limb in FEET}
