@@ -407,6 +407,35 @@ def test_a_swing_foot_landing_on_an_object_follows_where_the_object_is():
     assert np.allclose(WholeBodyController(sim.world, floor)._landing_shift(d, "right_foot", floor.phases[-2], mid), 0.0)
 
 
+def test_the_com_reference_follows_the_feet_while_one_stands_on_an_object():
+    """``feet_follow_on_objects``: with a stance foot on a plan's object the CoM reference moves onto
+    where the feet really are (the foot landed where the object is, not where it was planned); on the
+    floor it stays the plan's (``feet_follow`` off)."""
+    import dataclasses
+
+    from lomanip_sim.trajectory import LimbContact, Phase
+
+    sim, tr = simulation("case_lift_box")
+    oid = next(iter(tr.objects))
+    last = tr.phases[-1]
+    on_box = LimbContact(oid, np.asarray(tr.objects[oid][0][-1], float), np.array([0.0, 0.0, 1.0]))
+    stand = Phase(last.start, last.end, {**last.contacts, "right_foot": on_box})
+    plan = dataclasses.replace(tr, phases=[*tr.phases[:-1], stand])
+    d = sim.data
+    bq = sim.model.jnt_qposadr[sim.model.body_jntadr[mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "pelvis")]]
+    d.qpos[bq : bq + 2] += [0.04, -0.02]   # the robot (its soles with it) off its plan
+    mujoco.mj_forward(sim.model, d)
+    t = 0.5 * (last.start + last.end)
+    for gains, floor, moves in ((WbcGains(), False, True), (WbcGains(feet_follow_on_objects=0.0), False, False),
+                                (WbcGains(), True, False)):
+        wbc = WholeBodyController(sim.world, tr if floor else plan, gains)
+        wbc.t0 = float(d.time) - t   # the controller at time t of the plan
+        i, s = tr.index_at(t)
+        np.testing.assert_allclose(wbc._feet_follow_target(d, stand.contacts, i, s), [0.04, -0.02], atol=1e-3)
+        wbc.compute(d)
+        assert (np.linalg.norm(wbc._feet_shift) > 1e-4) == moves
+
+
 def test_lifted_object_gets_the_force_its_planned_motion_needs():
     """On a lifted object the hands' fed-forward net force is m (a + g) of its planned motion, split
     between the hands, with the plan's squeeze kept (times grasp_squeeze_scale): S1's plan lifts its
