@@ -23,7 +23,7 @@ def _squat_hip(sim, roll: float, roll_rate: float = 0.0) -> None:
     mujoco.mj_forward(m, d)
 
 
-def guard_dofs(sim) -> slice:
+def _dofs(sim) -> slice:
     start = sim.world.joint_dof_adr[0] - 6
     return slice(start, start + 35)
 
@@ -48,9 +48,9 @@ def test_row_gives_the_distance_rate(roll):
     m, d = sim.model, sim.data
     guard = SelfCollisionGuard(m, activation=0.1)
     _squat_hip(sim, roll)
-    d.qvel[guard_dofs(sim)] = np.random.default_rng(3).normal(size=35) * 0.3
+    d.qvel[_dofs(sim)] = np.random.default_rng(3).normal(size=35) * 0.3
     mujoco.mj_forward(m, d)
-    row = next(r for r in guard.rows(d, guard_dofs(sim)) if r.pair == PAIR)
+    row = next(r for r in guard.rows(d, _dofs(sim)) if r.pair == PAIR)
     h = 1e-5
     d2 = mujoco.MjData(m)
     d2.qpos[:], d2.qvel[:] = d.qpos, d.qvel
@@ -58,22 +58,26 @@ def test_row_gives_the_distance_rate(roll):
     mujoco.mj_forward(m, d2)
     moved, _pa, _pb = guard.closest(d2, _geoms(guard, PAIR))
     assert (row.distance > 0) == (roll == 0.0)
-    assert row.row @ d.qvel[guard_dofs(sim)] == pytest.approx((moved - row.distance) / h, rel=1e-3, abs=1e-6)
+    assert row.row @ d.qvel[_dofs(sim)] == pytest.approx((moved - row.distance) / h, rel=1e-3, abs=1e-6)
 
 
 def test_qp_decelerates_a_hip_closing_on_the_pelvis():
-    """A hip rolling into the pelvis 0.5 mm away: the QP's accelerations obey the barrier row (they
-    open the gap); without the guard the same step lets the link run on into the pelvis."""
+    """A hip rolling into the pelvis 0.4 mm away: the guarded QP's accelerations obey the barrier
+    row (they turn the closing round); the same QP without the guard (a stiff posture task here)
+    lets the link run on into the pelvis."""
+    import dataclasses
+
     sim, tr = simulation("case_stand")
     _squat_hip(sim, roll=0.0, roll_rate=1.0)
-    guarded = WholeBodyController(sim.world, tr, WbcGains())
+    gains = WbcGains(posture_kp=400.0, w_posture=10.0)
+    guarded = WholeBodyController(sim.world, tr, gains)
     guarded.compute(sim.data)
     rows = {r.pair: r for r in guarded.guard_rows}
     assert PAIR in rows and 0.0 < rows[PAIR].distance < 0.002
     r = rows[PAIR]
-    assert r.lower > 0.0   # closing at this speed, the gap must be opened
+    assert r.row @ sim.data.qvel[_dofs(sim)] < 0.0 and r.lower > 0.0   # closing: the gap must open
     assert r.row @ guarded.last_qdd >= r.lower - 1e-6
-    free = WholeBodyController(sim.world, tr, WbcGains(guard_rate=0.0))
+    free = WholeBodyController(sim.world, tr, dataclasses.replace(gains, guard_rate=0.0))
     free.compute(sim.data)
     assert free.guard_rows == []
-    assert r.row @ free.last_qdd < r.lower
+    assert r.row @ free.last_qdd < 0.0

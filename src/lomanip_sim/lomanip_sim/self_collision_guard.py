@@ -39,7 +39,7 @@ class SelfCollisionGuard:
     """Barrier rows for body pairs of one MuJoCo model (collision geoms only)."""
 
     def __init__(self, model: mujoco.MjModel, pairs=HIP_PAIRS, activation: float = 0.02,
-                 rate: float = 20.0, min_distance: float = 0.0) -> None:
+                 rate: float = 10.0, min_distance: float = 0.001) -> None:
         self.model = model
         self.activation, self.rate, self.min_distance = activation, rate, min_distance
         self.pairs: list[tuple[tuple[str, str], int, int, list[tuple[int, int]]]] = []
