@@ -246,6 +246,9 @@ class ProblemData:
         self.moving = list(moving) if moving is not None else prob.moving_object_ids()
         self.midx = {oid: j for j, oid in enumerate(self.moving)}
         self.x_init = np.asarray(prob.initial_configuration, float)
+        # objects a hand may come near on purpose: every moving one, and any a hand touches
+        self._hand_touched = set(self.moving) | {c.object_id for ph in prob.phases for limb, c in ph.contacts.items()
+                                                 if limb.endswith("_hand") and c is not None}
         self._object_timeline()
         self._warm_start_x()
         if pairs is None:
@@ -1403,7 +1406,8 @@ class ProblemData:
         knot ``k``, at least Options.carried_object_clearance for every sphere but the hands' and
         forearms' (they hold it); with Options.forearm_clear_of_held_object, -HELD_OBJECT_FOREARM_DEPTH
         (less Options.hand_standoff) for a forearm sphere against the object its hand holds;
-        Options.body_object_clearance for the pelvis, torso, head and thigh spheres."""
+        Options.body_object_clearance for the pelvis, torso, head and thigh spheres;
+        Options.hand_object_clearance for the hand spheres against still objects no hand touches."""
         grp = self.model.spheres[s].group
         if self.prob.options.forearm_clear_of_held_object and grp.endswith("_forearm") and k is not None \
                 and self._hand_holds(k, grp.split("_")[0], oid):
@@ -1412,6 +1416,8 @@ class ProblemData:
         out = LEG_OBJECT_CLEARANCE if grp.endswith(("_foot", "_shin")) else 0.0
         if grp in ("pelvis", "torso", "head") or grp.endswith("_thigh"):
             out = max(out, self.prob.options.body_object_clearance)
+        if grp.endswith("_hand") and oid not in self._hand_touched:
+            out = max(out, self.prob.options.hand_object_clearance)
         carried = self.prob.options.carried_object_clearance
         if carried > 0 and k is not None and not grp.endswith(("_hand", "_forearm")) \
                 and self.obj_mode(k, oid) == "free":

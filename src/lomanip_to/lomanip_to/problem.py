@@ -456,6 +456,12 @@ class Options:
     #: and a table leg at 4.7-5.0 s, and between the knots 4.8 and 5.0 s the left hip's meshes cut
     #: 3.9 cm into the leg; executed, the left hip struck the table and the robot fell (session 49)
     body_object_clearance: float = 0.0
+    #: m: the TO's collision rows keep the hand spheres this far from every object no hand touches
+    #: in the schedule (a shelf, a table; 0 = off). Why: the simulator collides a box round each
+    #: hand whose corners lie up to 4.3 cm outside the TO's two hand spheres; S1's plan from
+    #: prompts reached past a shelf leg with those corners 2-3 cm inside it, and executed, the wrist
+    #: caught on the shelf and the robot fell (session 54)
+    hand_object_clearance: float = 0.0
     #: m: the nominal of an object carried free comes to at most this horizontal distance from the
     #: base (over ``CARRY_REACH_BLEND`` s after it leaves its support and back before it is set down;
     #: 0 = off: it keeps its pose relative to the base from the grasp).  Why: S2's box nominal stayed
@@ -644,6 +650,7 @@ def validate_problem(prob: Problem, model=None) -> None:
                            ("placement_tolerance", 1.0, "in [0, 1] m (0 = off)"),
                            ("carried_object_clearance", 0.2, "in [0, 0.2] m (0 = off)"),
                            ("body_object_clearance", 0.2, "in [0, 0.2] m (0 = off)"),
+                           ("hand_object_clearance", 0.2, "in [0, 0.2] m (0 = off)"),
                            ("dt_lift", 1.0, "in [0, 1] s (0 = off)"), ("cop_margin_front", 0.12, "in [0, 0.12] m"),
                            ("cop_margin_side", 0.02, "in [0, 0.02] m"),
                            ("hand_standoff", 0.1, "in [0, 0.1] m"),
