@@ -23,6 +23,20 @@ def test_carried_points_touch_the_box_faces_from_inside():
     assert np.allclose(loc[:, 2] + pts[:, 3], half[2])
 
 
+def test_carried_points_stay_inside_a_thin_primitive():
+    # the S1 basket's floor is 1 cm thick: its spheres must not reach below it (they held the
+    # basket 5 mm off its shelf at the lift, session 55)
+    from lomanip_to.problem import Primitive, SceneObject
+
+    plate = Primitive("box", (0.3, 0.4, 0.01), (0.0, 0.0, -0.09))
+    basket = SceneObject("basket", "basket", True, (0.0, 0.0, 0.0), mass=0.5, primitives=[plate])
+    pts = carried_points(basket)
+    assert np.allclose(pts[:, 3], 0.005)
+    z = pts[:, 2]
+    assert np.all(z - pts[:, 3] >= -0.095 - 1e-12) and np.all(z + pts[:, 3] <= -0.085 + 1e-12)
+    assert np.isclose((z - pts[:, 3]).min(), -0.095)
+
+
 def test_the_lifted_box_gets_rows_against_the_table_only_while_carried(g1):
     data = ProblemData(load_problem("case_lift_box", model=g1), g1)
     assert data.structure.env_pairs == len(data.env_pairs) > 0

@@ -112,17 +112,22 @@ def outside_top(p, centre, R, half) -> float:
 def carried_points(o: SceneObject, r: float = CARRIED_POINT_RADIUS) -> np.ndarray:
     """(n, 4) point spheres (centre in the object frame, radius) standing for an object in its
     clearance rows: a 3 x 3 grid on the bottom and on the top face of each primitive's box, inset by
-    ``r`` so each sphere touches the faces.  A simplification: between the grid points an edge of
-    another object can still cut into a face (1 cm at a table's edge under a box tilted 0.22 rad,
-    docs/to.md session 28; the check samples more densely)."""
+    ``r`` so each sphere touches the faces.  A primitive thinner than ``2 r`` (the basket's 1 cm
+    floor and walls) gets spheres of its least half extent: at 1 cm they stood 5 mm below the
+    basket's floor, so the first carried knot had to lift it 5 mm off the shelf at zero velocity,
+    and S1's grab solves stalled at 1.27e-4 on the basket's integration rows (session 55).  A
+    simplification: between the grid points an edge of another object can still cut into a face
+    (1 cm at a table's edge under a box tilted 0.22 rad, docs/to.md session 28; the check samples
+    more densely)."""
     out = []
     for pr in o.primitives:
-        he = np.maximum(pr.half_extents() - r, 0.0)
+        rp = min(r, float(np.min(pr.half_extents())))
+        he = np.maximum(pr.half_extents() - rp, 0.0)
         Rz = rpy_to_rot(np.array([0.0, 0.0, pr.yaw]))
         for sz in (-1.0, 1.0):
             for sx in (-1.0, 0.0, 1.0):
                 for sy in (-1.0, 0.0, 1.0):
-                    out.append([*(np.asarray(pr.position, float) + Rz @ (he * [sx, sy, sz])), r])
+                    out.append([*(np.asarray(pr.position, float) + Rz @ (he * [sx, sy, sz])), rp])
     return np.array(out).reshape(-1, 4)
 
 
