@@ -240,3 +240,26 @@ def test_a_floor_step_towards_a_box_to_step_onto_stays_off_its_footprint():
     assert max(p[0] for p in floor_steps) <= near_face - FOOTHOLD_CLEARANCE + 1e-6
     on_box = sched.phases[-1].contacts
     assert on_box["left_foot"].object_id == "box" and on_box["right_foot"].object_id == "box"
+
+
+def test_a_reach_above_the_shoulders_takes_longer():
+    from dataclasses import replace
+
+    stance = Stance(np.array([0.0, 0.12, 0.0]), np.array([0.0, -0.12, 0.0]))
+
+    def grab_reach(tm):
+        sched = plan_schedule(stance, _s1_subtasks(), tm, objects=_objects())
+        grab = sched.keyframes[2].time - tm.grasp   # the reach ends where the grasp starts
+        return next(p for p in sched.phases if abs(p.end - grab) < 1e-9 and p.subtask_index == 2)
+
+    tm = Timing()
+    reach = grab_reach(tm)
+    # the basket's hand target 1.6 m up, the soles on the 0.3 m box: 0.3 m above the shoulders
+    rise = 1.6 - 0.30 - tm.reach_shoulder_height
+    assert reach.end - reach.start == pytest.approx(tm.reach + rise / tm.reach_overhead_speed)
+    off = replace(tm, reach_overhead_speed=0.0)
+    assert grab_reach(off).end - grab_reach(off).start == pytest.approx(tm.reach)
+    # the pick of the box (hands 0.15 m up) keeps the plain reach
+    first = plan_schedule(stance, _s1_subtasks(), tm, objects=_objects())
+    pick = first.keyframes[0].time - tm.grasp
+    assert any(abs(p.end - pick) < 1e-9 and abs(p.end - p.start - tm.reach) < 1e-9 for p in first.phases)

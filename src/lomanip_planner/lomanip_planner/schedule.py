@@ -97,6 +97,13 @@ class Timing:
     step_up: float = 0.8            # single support of a step onto another surface (s)
     step_up_double_support: float = 0.4   # double support after it
     reach: float = 0.8              # move the hands to the object
+    # a reach to a hand target higher than ``reach_shoulder_height`` above the soles lasts longer by
+    # the excess over ``reach_overhead_speed`` (0 = off). Why: S1's grab (the basket 1.3 m above the
+    # soles on the box) in 0.8 s turned the arms up to 0.86 rad per 0.2 s knot interval; between the
+    # knots the hands cut 5-7 cm through the shelf's leg and top board, which the TO's collision rows
+    # (at the knots) do not see, and executed the wrist caught on the shelf (session 55)
+    reach_shoulder_height: float = 1.0
+    reach_overhead_speed: float = 0.3   # m/s
     grasp: float = 0.4              # hands in contact before the object moves
     manipulate: float = 0.8         # lift / lower
     release: float = 0.4            # hands still in contact after the object rests
@@ -284,6 +291,16 @@ class _Builder:
                                                                         {o: ObjectMotion("free") for o in self.carried})))
         self.t += duration
 
+    def reach_time(self, hands: dict) -> float:
+        """Duration of a reach to ``hands`` (limb -> ContactSpec): Timing.reach, longer for a target
+        above the shoulders (Timing.reach_shoulder_height above the lower sole)."""
+        tm = self.timing
+        if tm.reach_overhead_speed <= 0 or not hands:
+            return tm.reach
+        soles = min(float(self.stance.left[2]), float(self.stance.right[2]))
+        rise = max(float(c.position[2]) for c in hands.values()) - soles - tm.reach_shoulder_height
+        return tm.reach + max(rise, 0.0) / tm.reach_overhead_speed
+
     def walk_to(self, targets: dict[str, tuple[np.ndarray, str]], subtask: int,
                 objects: dict[str, ObjectMotion] | None = None) -> None:
         """Footsteps from the current stance to ``targets`` (foot -> (position, surface)).
@@ -379,7 +396,7 @@ def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timi
                 raise ScheduleError(f"subtask {sk.index} ({sk.prompt!r}): push without a hand contact")
             target = next(iter(hands.values())).object_id
             b.walk_to(feet, sk.index)                        # up to the object (keyframe stance)
-            b.add(tm.reach, sk.index, hands=dict(b.held))
+            b.add(b.reach_time(hands), sk.index, hands=dict(b.held))
             b.held = dict(hands)
             b.add(tm.grasp, sk.index, objects={})
             kf_time = b.t
@@ -400,7 +417,7 @@ def plan_schedule(initial: Stance, subtasks: list[SubtaskKeyframe], timing: Timi
                 if not hands:
                     raise ScheduleError(f"subtask {sk.index} ({sk.prompt!r}): pick without a hand contact")
                 obj = next(iter(hands.values())).object_id
-                b.add(tm.reach, sk.index, hands=dict(b.held))
+                b.add(b.reach_time(hands), sk.index, hands=dict(b.held))
                 b.held.update(hands)
                 b.add(tm.grasp, sk.index)
                 kf_time = b.t
