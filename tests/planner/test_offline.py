@@ -66,7 +66,7 @@ def test_s1_from_prompts_has_the_fixtures_structure(s1_plan):
     from lomanip_to.problem import WALKING
 
     prob = s1_plan.problem
-    assert prob.duration < 23.0 and len(prob.phases) < 52
+    assert prob.duration < 24.0 and len(prob.phases) < 52   # 23.5 s: the grab's overhead reach is 2.1 s (session 55)
     walking = [ph for ph in prob.phases if ph.phase_type == WALKING]
     assert sum(ph.subtask_index == 0 for ph in walking) <= 4           # no walk round the box
     assert sum("box" in ph.objects for ph in walking) <= 12            # carry: fixture 8
