@@ -95,7 +95,7 @@ def run_plan_demo(args: argparse.Namespace) -> int:
 
     plan_args = argparse.Namespace(
         task=args.task, prompt=None, place=None, scenario=None, set=None, params=args.params, record=True,
-        record_camera=False, execute=args.execute, max_iterations=None, timeout=1800.0,
+        record_camera=False, execute=args.execute, max_iterations=None, timeout=None,
         no_progress=args.no_progress, run_dir=args.run_dir)
     print(f"[lomanip] demo: planning task {args.task} from its prompts", flush=True)
     code = cmd_plan(plan_args)

@@ -81,9 +81,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
     def plan(stop_requested) -> int:
         from lomanip_launch.plan_client import PlanClientError, run_plan
         from lomanip_launch.plan_outputs import error_name, executed, save_plan
+        from lomanip_planner.timeouts import plan_wait
 
+        timeout = args.timeout if args.timeout is not None else plan_wait(task.options, args.execute)
         try:
-            outcome = run_plan(task, args.timeout, execute=args.execute, progress_bar=not args.no_progress,
+            outcome = run_plan(task, timeout, execute=args.execute, progress_bar=not args.no_progress,
                                should_stop=stop_requested)
         except PlanClientError as exc:
             print(f"[lomanip] error: {exc}", flush=True)
@@ -127,7 +129,8 @@ def add_parser(sub) -> None:
     p.add_argument("--record-camera", action="store_true", help="also record the camera streams (large)")
     p.add_argument("--execute", action="store_true", help="execute the trajectory in the simulator afterwards")
     p.add_argument("--max-iterations", type=int, help="TO iteration limit")
-    p.add_argument("--timeout", type=float, default=1800.0, help="s to wait for the plan result")
+    p.add_argument("--timeout", type=float, default=None,
+                   help="s to wait for the plan result (default: from the task's TO time_limit, at least 1800)")
     p.add_argument("--no-progress", action="store_true", help="log lines instead of a progress bar (always, when stderr is not a terminal)")
     p.add_argument("--run-dir", default="runs", help="where outputs go")
     p.set_defaults(func=cmd_plan)

@@ -40,6 +40,7 @@ from lomanip_msgs.msg import ContactSchedule, ErrorCode, KeyframeArray, SceneObj
 from lomanip_msgs.srv import ExtractContacts, OptimizeTrajectory, PlanTask, ResetScenario
 
 from . import conversions as conv
+from .timeouts import optimisation_timeout
 
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -211,13 +212,14 @@ class PlannerNode(Node):
         return response
 
     # --- the pipeline ------------------------------------------------------------------------------
-    def _call(self, client, request, stage: str, cancelled: Callable[[], bool]):
-        if not client.wait_for_service(timeout_sec=min(10.0, self.timeouts[stage])):
+    def _call(self, client, request, stage: str, cancelled: Callable[[], bool], timeout: float | None = None):
+        timeout = self.timeouts[stage] if timeout is None else float(timeout)
+        if not client.wait_for_service(timeout_sec=min(10.0, timeout)):
             raise PlanFailed(ErrorCode.NOT_READY, f"{stage}: service {client.srv_name} is not available")
         done = threading.Event()
         future = client.call_async(request)
         future.add_done_callback(lambda _: done.set())
-        deadline = time.monotonic() + self.timeouts[stage]
+        deadline = time.monotonic() + timeout
         while not done.wait(0.2):
             if cancelled():
                 future.cancel()
@@ -226,7 +228,7 @@ class PlannerNode(Node):
                 raise PlanFailed(ErrorCode.CANCELLED, f"cancelled during {stage}")
             if time.monotonic() > deadline:
                 future.cancel()
-                raise PlanFailed(ErrorCode.TIMEOUT, f"{stage} did not answer within {self.timeouts[stage]:.0f} s")
+                raise PlanFailed(ErrorCode.TIMEOUT, f"{stage} did not answer within {timeout:.0f} s")
         return future.result()
 
     def _plan(self, request, response, feedback, cancelled) -> None:
@@ -323,8 +325,13 @@ class PlannerNode(Node):
                                       f"violation {msg.max_dynamics_violation:.1e} [{msg.status_message}]"))
 
         self._to_progress = to_progress
+        to_timeout = optimisation_timeout(self.timeouts["optimisation"], request.options.time_limit)
+        if to_timeout > self.timeouts["optimisation"]:
+            log.info(f"optimisation: waiting up to {to_timeout:.0f} s (the TO's hard deadline for its "
+                     f"{request.options.time_limit:.0f} s time limit; optimisation_timeout is "
+                     f"{self.timeouts['optimisation']:.0f} s)")
         try:
-            res = self._call(self.cli_to, to_request, "optimisation", cancelled)
+            res = self._call(self.cli_to, to_request, "optimisation", cancelled, timeout=to_timeout)
         finally:
             self._to_progress = None
         stage_done("optimisation", t0)
