@@ -300,6 +300,12 @@ class Options:
     #: of 1271 but fails the check between knots (1.45, limit 1), and S2 nominal's faster plan falls
     #: when executed. An option, not the default (docs/to.md, session 39)
     final_warm_start_max_violation: float = 1e-2
+    #: a final stage that started warm (from its guide's primal-dual point) and ends without a
+    #: feasible iterate is solved once more from the guide's primal point alone, barrier from
+    #: scratch: the two starts take different paths through this non-convex problem, and the cold
+    #: one has converged where the warm one crawled to its cap (docs/to.md, session 56). Costs a
+    #: second final stage only when the first fails
+    final_cold_retry: bool = False
     #: solve subtask by subtask (at rest at subtask boundaries), stitch, then polish the whole horizon
     subtask_segments: bool = True
     #: also cut a subtask's segment at its internal rest points (:func:`lomanip_to.solver.rest_points`:

@@ -196,6 +196,7 @@ class _Run:
         self.stages: list = []
         self.timed_out = False
         self.stalled = False
+        self.guide_point = None   # the primal point a final stage started from
 
     def sink(self, stage: str, lbg: np.ndarray, ubg: np.ndarray, stall: bool = False):
         """Per-iteration hook ``fn(f, g, point=None)``; ``point()`` gives (x, lam_x, lam_g) of the
@@ -273,6 +274,8 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
             # bounds for hundreds of iterations; hand over the primal point only, barrier from scratch
             args["x0"] = np.clip(z0, args["lbx"], args["ubx"])
             o, tag = dict(base), "main"
+        if last_stage:
+            run.guide_point = None if z0 is None else np.array(z0, float)   # for Options.final_cold_retry
         hessian = opt.final_hessian if last_stage else opt.guide_hessian
         rows = active_rows(args["lbg"], args["ubg"])
         nlp, s = get_solver(wd, data.structure, K, o, threads, tag, hessian, rows)
@@ -388,6 +391,19 @@ def _timing_split(st: dict, wall: float) -> dict:
             "rest": max(wall - t_eval - float(st.get("t_wall_callback_fun", 0.0)), 0.0)}
 
 
+def _with_cold_retry(run: _Run, data: ProblemData, win, wd, threads, label: str, res: tuple) -> tuple:
+    """``res`` of :func:`_run_stages`, or, when its final stage started warm and failed and
+    ``Options.final_cold_retry`` is on, the final stage solved again from the guide's primal point
+    with the barrier from scratch (its iterations count in the same solve)."""
+    opt = data.prob.options
+    last = run.stages[-1] if run.stages else {}
+    if (_converged(res[3]) or not opt.final_cold_retry or run.timed_out or run.guide_point is None
+            or last.get("start") != "warm"):
+        return res
+    return _run_stages(run, data, win, wd, threads, label + "cold retry ", z0=run.guide_point,
+                       stages=[homotopy_stages(opt, data)[-1]])
+
+
 def _converged(status: str) -> bool:
     return status in ("Solve_Succeeded", "Solved_To_Acceptable_Level") or status.startswith(_BEST_ITERATE_STATUSES)
 
@@ -414,7 +430,8 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
     if len(segs) <= 1:
         get_nlp(wd, data.structure, data.grid.K, threads)  # assemble before timing
         build_time = time.perf_counter() - t_start
-        z, _, _, status, nlp, args, Pm, lbg, ubg, f = _run_stages(run, data, win, wd, threads, "")
+        z, _, _, status, nlp, args, Pm, lbg, ubg, f = _with_cold_retry(
+            run, data, win, wd, threads, "", _run_stages(run, data, win, wd, threads, ""))
         converged = _converged(status)
     else:
         build_time = time.perf_counter() - t_start
@@ -428,7 +445,8 @@ def solve(prob: Problem, model: G1Model | None = None, threads: int = 2, progres
                              env_pairs=[e for e in data.env_pairs if e[0] in moving])
             swin, swd = (win, wd) if sd.structure == data.structure else get_window(model, sd.structure)
             where = f"subtask {sp.phases[0].subtask_index} ({t0:.1f}-{t1:.1f} s)"
-            res = _run_stages(run, sd, swin, swd, threads, where + " ")
+            res = _with_cold_retry(run, sd, swin, swd, threads, where + " ",
+                                   _run_stages(run, sd, swin, swd, threads, where + " "))
             parts.append((sd, res, swin))
             if not _converged(res[3]):
                 converged = False
