@@ -198,7 +198,7 @@ def test_options_round_trip_the_single_support_com_lateral(model):
 
 
 @pytest.mark.parametrize("name, value", [("interval_momentum_tolerance", 0.5), ("upper_body_acceleration_limit", 30.0),
-                                         ("upper_body_speed_limit", 3.0), ("carried_object_clearance", 0.05), ("dt_lift", 0.1),
+                                         ("upper_body_speed_limit", 3.0), ("carried_object_clearance", 0.05), ("dt_lift", 0.1), ("dt_reach", 0.1),
                                          ("body_object_clearance", 0.03), ("hand_object_clearance", 0.04),
                                          ("carry_reach", 0.32), ("placement_tolerance", 0.04)])
 def test_options_round_trip_the_rows_on_the_motion_between_knots(model, name, value):

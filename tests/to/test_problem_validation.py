@@ -103,6 +103,7 @@ def test_unknown_hessian_option(lift, g1):
                                        ("upper_body_speed_limit", -1.0), ("upper_body_speed_limit", float("nan")),
                                        ("carried_object_clearance", -0.01), ("carried_object_clearance", 0.5),
                                        ("carried_object_clearance", float("nan")), ("dt_lift", -0.1), ("dt_lift", 2.0),
+                                       ("dt_reach", -0.1), ("dt_reach", float("nan")),
                                        ("body_object_clearance", -0.01), ("body_object_clearance", 0.5),
                                        ("hand_object_clearance", -0.01), ("hand_object_clearance", float("nan"))])
 def test_rows_on_the_motion_between_knots_refuse_bad_values(lift, g1, name, bad):

@@ -30,7 +30,7 @@ _OPTION_FIELDS = {"use_keyframe_base_cost": bool, "use_keyframe_foot_cost": bool
                   "single_support_com_lateral": float, "waist_yaw_range": float,
                   "interval_momentum_tolerance": float, "upper_body_acceleration_limit": float,
                   "upper_body_speed_limit": float,
-                  "carried_object_clearance": float, "body_object_clearance": float, "hand_object_clearance": float, "dt_lift": float, "carry_reach": float,
+                  "carried_object_clearance": float, "body_object_clearance": float, "hand_object_clearance": float, "dt_lift": float, "dt_reach": float, "carry_reach": float,
                   "placement_tolerance": float, "lift_with_previous_segment": bool, "segment_moving_objects": bool,
                   "load_in_double_support_margin": bool, "resting_object_dynamics": bool, "cop_margin_front": float,
                   "cop_margin_side": float,

@@ -72,12 +72,24 @@ def _lifts(phases, i: int) -> bool:
     return any(mo.mode == "free" and (o not in before or before[o].mode != "free") for o, mo in phases[i].objects.items())
 
 
+def reaches(phases, i: int) -> bool:
+    """Whether a hand makes a contact at the end of stance phase i that it does not have in it, the
+    next phase being of the same subtask (segments are cut at subtask boundaries, so a segment's
+    grid and the whole horizon's agree)."""
+    if i + 1 >= len(phases) or phases[i].phase_type == WALKING or phases[i + 1].subtask_index != phases[i].subtask_index:
+        return False
+    now, nxt = phases[i].contacts, phases[i + 1].contacts
+    return any(h in HANDS and h not in now for h in nxt)
+
+
 def make_grid(prob: Problem) -> Grid:
     ts, ph = [], []
     for i, p in enumerate(prob.phases):
         dt = prob.options.dt_walking if p.phase_type == WALKING else prob.options.dt_stance
         if p.phase_type != WALKING and prob.options.dt_lift > 0 and _lifts(prob.phases, i):
             dt = prob.options.dt_lift
+        elif prob.options.dt_reach > 0 and reaches(prob.phases, i):
+            dt = prob.options.dt_reach
         n = max(1, int(math.ceil((p.end - p.start) / dt - 1e-9)))
         for k in range(n):
             ts.append(p.start + (p.end - p.start) * k / n)

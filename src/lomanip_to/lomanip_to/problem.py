@@ -244,6 +244,11 @@ class Options:
     #: knot spacing (s) of a stance phase in which an object leaves its support into the hands (a
     #: lift); 0 = dt_stance. Why: S1's box and body rose 0.25 m in one 0.2 s interval
     dt_lift: float = 0.0
+    #: knot spacing (s) of a stance phase at whose end a hand makes a new contact (the reach before
+    #: a grasp or a push); 0 = dt_stance. Why: in S1's grab from the graph (session 56) the arms swung
+    #: over the shelf's edge between 0.2 s knots: the dense motion passed the left wrist 7.4 cm through
+    #: the shelf and carried 1.41 kg m^2/s of angular momentum the plan did not (docs/to.md, session 57)
+    dt_reach: float = 0.0
     tol: float = 1e-4
     constr_tol: float = 1e-4
     time_limit: float = 600.0
@@ -657,7 +662,8 @@ def validate_problem(prob: Problem, model=None) -> None:
                            ("carried_object_clearance", 0.2, "in [0, 0.2] m (0 = off)"),
                            ("body_object_clearance", 0.2, "in [0, 0.2] m (0 = off)"),
                            ("hand_object_clearance", 0.2, "in [0, 0.2] m (0 = off)"),
-                           ("dt_lift", 1.0, "in [0, 1] s (0 = off)"), ("cop_margin_front", 0.12, "in [0, 0.12] m"),
+                           ("dt_lift", 1.0, "in [0, 1] s (0 = off)"),
+                           ("dt_reach", 1.0, "in [0, 1] s (0 = off)"), ("cop_margin_front", 0.12, "in [0, 0.12] m"),
                            ("cop_margin_side", 0.02, "in [0, 0.02] m"),
                            ("hand_standoff", 0.1, "in [0, 0.1] m"),
                            ("final_warm_start_max_violation", np.inf, ">= 0"),

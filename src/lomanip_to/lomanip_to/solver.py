@@ -22,7 +22,7 @@ import numpy as np
 
 from .assembly import AssembledNLP, WindowDerivatives
 from .checks import penetration_per_knot, run_checks
-from .discretize import ProblemData, _lifts
+from .discretize import ProblemData, _lifts, reaches
 from .model import FEET, HANDS, LIMBS, G1Model, rpy_to_rot
 from .problem import TO_NOT_CONVERGED, WALKING, Problem, validate_problem
 from .result import (CAPPED_FEASIBLE_STATUS, FEASIBLE_BEFORE_STOP_STATUS, STALLED_STATUS, STOPPED_EARLY_STATUSES,
@@ -545,6 +545,8 @@ def rest_points(prob: Problem) -> list:
                 continue
             if not (nx.phase_type == "walking" or _grip(nx) != _grip(ph)):
                 continue
+            if prob.options.dt_reach > 0 and reaches(phases, i):
+                continue  # the reach's spacing needs the grasp after it in the same segment
             if set(_grip(ph)) - set(_grip(nx)):
                 # a release: the hand is still at the contact at its first free knot, where the
                 # hand-object pairs are off; a segment starting there has them on (S1's release
