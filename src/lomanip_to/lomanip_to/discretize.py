@@ -1413,7 +1413,9 @@ class ProblemData:
         for g in self.prob.placement_goals:
             if g.object_id != oid:
                 continue
-            if k == self.goal_knot(g) or k == self.grid.K - 1:
+            held_after = (self.prob.options.hold_placement_goals and mode == "free"
+                          and k > self.goal_knot(g))   # Options.hold_placement_goals
+            if k == self.goal_knot(g) or k == self.grid.K - 1 or held_after:
                 col[P[f"o{j}_w_goal"]] = g.weight
                 col[P[f"o{j}_goal"]] = [*g.position, g.yaw]
 

@@ -311,6 +311,12 @@ class Options:
     #: one has converged where the warm one crawled to its cap (docs/to.md, session 56). Costs a
     #: second final stage only when the first fails
     final_cold_retry: bool = False
+    #: an object still held (``free``) after its placement goal's time is held at the goal: the
+    #: goal's cost at every such knot, not only at the goal's knot and the last one. Why: S1 from
+    #: prompts lifts the basket to its goal, then over the 1 s hold its plan let it sag 6 cm and
+    #: lifted it back in the last 0.2 s interval (the last knot has the goal's cost too); executed,
+    #: the right hand lost the basket in that re-lift in 2 of 3 worlds (docs/to.md, session 57)
+    hold_placement_goals: bool = False
     #: solve subtask by subtask (at rest at subtask boundaries), stitch, then polish the whole horizon
     subtask_segments: bool = True
     #: also cut a subtask's segment at its internal rest points (:func:`lomanip_to.solver.rest_points`:
