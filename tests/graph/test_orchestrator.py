@@ -147,3 +147,22 @@ def test_scenario_overrides_reach_the_sim(tmp_path):
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
     sim_log = next(tmp_path.glob("*/logs/lomanip_sim.log")).read_text()
     assert "scenario s2_trolley ready" in sim_log
+
+
+def test_a_second_graph_in_the_same_domain_is_refused(tmp_path):
+    """A node named as one of ours already in this ROS_DOMAIN_ID (another `lomanip` running): one
+    clear line and exit code 3, before any node is started."""
+    fake = subprocess.Popen([sys.executable, "-c",
+                             "import rclpy, time\nrclpy.init()\nn = rclpy.create_node('lomanip_planner')\n"
+                             "while True:\n    rclpy.spin_once(n, timeout_sec=0.1)"],
+                            env=graph_env(), start_new_session=True)
+    try:
+        time.sleep(2.0)
+        assert fake.poll() is None
+        res = _run(["up", "--run-dir", str(tmp_path)], tmp_path)
+        assert res.returncode == 3, res.stdout + res.stderr
+        assert "another lomanip graph is running" in res.stderr and "lomanip_planner" in res.stderr, res.stderr
+        assert "started lomanip_sim" not in res.stdout + res.stderr
+    finally:
+        os.killpg(fake.pid, signal.SIGKILL)
+        fake.wait(5)

@@ -130,6 +130,25 @@ def _ros_node_names():
     return names, close
 
 
+#: s the orchestrator listens for nodes of another lomanip graph before it starts its own
+DISCOVERY_WAIT = 2.0
+
+
+def refuse_running_graph(names, ours: set[str], wait: float = DISCOVERY_WAIT) -> None:
+    """GraphError if nodes named as ours are already in the ROS graph (another `lomanip` in the same
+    ROS_DOMAIN_ID). Why: a second `lomanip demo` started beside a running `lomanip plan` sent its goal
+    to the other graph's planner (answered busy) and its nodes shared names with the running ones."""
+    deadline = time.monotonic() + wait
+    while True:
+        taken = sorted(ours & names())
+        if taken or time.monotonic() >= deadline:
+            break
+    if taken:
+        domain = os.environ.get("ROS_DOMAIN_ID", "0")
+        raise GraphError(f"another lomanip graph is running in ROS_DOMAIN_ID={domain} (its nodes: "
+                         f"{', '.join(taken)}); stop it, or start this one with another ROS_DOMAIN_ID")
+
+
 def run_graph(graph: ProcessGraph, duration: float | None, ready_timeout: float = 60.0,
               on_ready=None) -> int:
     """Start, wait for every node, run until Ctrl-C / duration / a node dies, stop everything."""
@@ -143,6 +162,7 @@ def run_graph(graph: ProcessGraph, duration: float | None, ready_timeout: float 
     names, close_probe = _ros_node_names()
     code = 0
     try:
+        refuse_running_graph(names, {s.name for s in graph.specs})
         graph.start()
         graph.wait_ready(names, ready_timeout)
         if any(n.spec.name == "lomanip_recorder" for n in graph.nodes):
