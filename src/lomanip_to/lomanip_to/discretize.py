@@ -1413,9 +1413,9 @@ class ProblemData:
         for g in self.prob.placement_goals:
             if g.object_id != oid:
                 continue
-            held_after = (self.prob.options.hold_placement_goals and mode == "free"
-                          and k > self.goal_knot(g))   # Options.hold_placement_goals
-            if k == self.goal_knot(g) or k == self.grid.K - 1 or held_after:
+            kg = self.goal_knot(g)
+            held_after = self.prob.options.hold_placement_goals and mode == "free" and k > kg
+            if k in (kg, self.grid.K - 1) or held_after:   # held_after: Options.hold_placement_goals
                 col[P[f"o{j}_w_goal"]] = g.weight
                 col[P[f"o{j}_goal"]] = [*g.position, g.yaw]
 
