@@ -248,6 +248,7 @@ def test_options_round_trip_the_front_cop_margin(model):
 
 
 @pytest.mark.parametrize("name, value", [("hand_standoff", 0.04), ("final_warm_start_max_violation", 1.0), ("final_cold_retry", True), ("hold_placement_goals", True),
+                                         ("collision_screen_distance", 0.1),
                                          ("cop_margin_front", 0.04)])
 def test_options_round_trip_the_hand_and_warm_start_values(model, name, value):
     """The message's defaults are the TO's; S1's task file values survive the trip."""

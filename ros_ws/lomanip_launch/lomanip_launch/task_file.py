@@ -35,7 +35,8 @@ _OPTION_FIELDS = {"use_keyframe_base_cost": bool, "use_keyframe_foot_cost": bool
                   "load_in_double_support_margin": bool, "resting_object_dynamics": bool, "cop_margin_front": float,
                   "cop_margin_side": float,
                   "hand_standoff": float, "forearm_clear_of_held_object": bool,
-                  "final_warm_start_max_violation": float, "final_cold_retry": bool, "hold_placement_goals": bool, "solver_options": dict, "weights": dict,
+                  "final_warm_start_max_violation": float, "final_cold_retry": bool, "hold_placement_goals": bool,
+                  "collision_screen_distance": float, "solver_options": dict, "weights": dict,
                   "subtask_options": dict}
 
 

@@ -194,6 +194,7 @@ def options_from_msg(o: TrajectoryOptions, base: P.Options | None = None) -> P.O
         final_warm_start_max_violation=float(o.final_warm_start_max_violation),
         final_cold_retry=bool(o.final_cold_retry),
         hold_placement_goals=bool(o.hold_placement_goals),
+        collision_screen_distance=float(o.collision_screen_distance),
         ipopt={**(base.ipopt if base is not None else {}),
                **{str(kv.name): P.parse_option_value(str(kv.value)) for kv in o.solver_options}},
         weights={**(base.weights if base is not None else {}), **{str(w.name): float(w.value) for w in o.weights}},
@@ -459,6 +460,7 @@ def request_from_problem(prob: P.Problem, joint_names):
         final_warm_start_max_violation=float(o.final_warm_start_max_violation),
         final_cold_retry=bool(o.final_cold_retry),
         hold_placement_goals=bool(o.hold_placement_goals),
+        collision_screen_distance=float(o.collision_screen_distance),
         solver_options=[SolverOption(name=str(k), value=str(v)) for k, v in (o.ipopt or {}).items()],
         weights=[CostWeight(name=str(k), value=float(v)) for k, v in (o.weights or {}).items()],
         subtask_options=subtask_options_msg(o.subtask_options))

@@ -317,6 +317,13 @@ class Options:
     #: lifted it back in the last 0.2 s interval (the last knot has the goal's cost too); executed,
     #: the right hand lost the basket in that re-lift in 2 of 3 worlds (docs/to.md, session 57)
     hold_placement_goals: bool = False
+    #: collision rows (robot-object, carried object, floor, self) farther than this (m) from their
+    #: bound at a stage's start are left out of that stage's NLP, their homotopy slacks pinned at 0;
+    #: a stage whose result violates a left-out row is solved again, screened anew (at most
+    #: ``solver.MAX_RESCREENS`` times). 0 = every row in every stage (``screening``). Why: the
+    #: demo's push has 21567 rows in its final stage, 7680 with 5 cm; it plans in half the time
+    #: (docs/to.md, session 58)
+    collision_screen_distance: float = 0.05
     #: solve subtask by subtask (at rest at subtask boundaries), stitch, then polish the whole horizon
     subtask_segments: bool = True
     #: also cut a subtask's segment at its internal rest points (:func:`lomanip_to.solver.rest_points`:
@@ -673,6 +680,7 @@ def validate_problem(prob: Problem, model=None) -> None:
                            ("cop_margin_side", 0.02, "in [0, 0.02] m"),
                            ("hand_standoff", 0.1, "in [0, 0.1] m"),
                            ("final_warm_start_max_violation", np.inf, ">= 0"),
+                           ("collision_screen_distance", 1.0, "in [0, 1] m (0 = off)"),
                            ("torque_margin", 1.0, "in (0, 1]")):
         val = getattr(prob.options, name)
         low_ok = val > 0 if rule.startswith("in (") else val >= 0  # "(": the interval is open at 0

@@ -20,6 +20,7 @@ import time
 import casadi as ca
 import numpy as np
 
+from . import screening
 from .assembly import AssembledNLP, WindowDerivatives
 from .checks import penetration_per_knot, run_checks
 from .discretize import ProblemData, _lifts, reaches
@@ -34,6 +35,7 @@ _NLPS: dict = {}
 _SOLVERS: dict = {}
 _MODEL: list = []
 _CALLBACKS: dict = {}
+_TRANSIENT: set = set()   # keys of the screened solvers in _SOLVERS
 #: solvers kept per process (one per structure, options and active-row set); the oldest is dropped
 #: beyond this, so a long-running TO node does not grow without bound
 MAX_CACHED_SOLVERS = 48
@@ -132,16 +134,22 @@ def active_rows(lbg: np.ndarray, ubg: np.ndarray) -> np.ndarray:
 
 
 def get_solver(wd, structure, K: int, ipopt_opts: dict, threads: int = 2, tag: str = "main",
-               hessian: str = "exact", rows: np.ndarray | None = None):
-    """Cached ipopt solver per (structure, K, options, active rows)."""
+               hessian: str = "exact", rows: np.ndarray | None = None, transient: bool = False):
+    """Cached ipopt solver per (structure, K, options, active rows).  ``transient``: a row set that
+    will not recur (screened at one point, ``Options.collision_screen_distance``): it replaces the
+    previous transient solver instead of filling the cache."""
     nlp = get_nlp(wd, structure, K, threads)
     rkey = None if rows is None else hashlib.sha1(np.asarray(rows, np.int64).tobytes()).hexdigest()
     skey = (tag, hessian, (structure, K), tuple(sorted(ipopt_opts.items())), rkey)
     if skey not in _SOLVERS:
-        while len(_SOLVERS) >= MAX_CACHED_SOLVERS:
-            old = _SOLVERS.pop(next(iter(_SOLVERS)))
-            _CALLBACKS.pop(id(old), None)
+        stale = [k for k in _SOLVERS if k in _TRANSIENT] if transient else []
+        while stale or len(_SOLVERS) >= MAX_CACHED_SOLVERS:
+            key = stale.pop() if stale else next(iter(_SOLVERS))
+            _TRANSIENT.discard(key)
+            _CALLBACKS.pop(id(_SOLVERS.pop(key)), None)
         _SOLVERS[skey] = _make_solver(nlp, ipopt_opts, hessian, rows)
+        if transient:
+            _TRANSIENT.add(skey)
     return nlp, _SOLVERS[skey]
 
 
@@ -250,17 +258,17 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
     warm_ok = lam is not None  # multipliers handed in by the caller come from converged solves
     if lam is not None:
         lam_x, lam_g = lam
-    for si, (expo, hard, pen, hom) in enumerate(stages):
+    screen_distance = float(opt.collision_screen_distance)
+    kinds = screening.row_kinds(win) if screen_distance > 0 else None
+    si, rescreens = 0, 0
+    while si < len(stages):
+        expo, hard, pen, hom = stages[si]
         lbw, ubw, lbg, ubg, Pm, W0 = data.fill(win, expo, hard, pen, hom)
         args = dict(lbx=_vec(lbw), ubx=_vec(ubw), lbg=_vec(lbg), ubg=_vec(ubg), p=_vec(Pm))
         last_stage = si == len(stages) - 1
         if z0 is None:
             args["x0"] = _vec(W0)
             o, tag = dict(base), "main"
-            if not last_stage:  # the surrogate stage only guides: cap its iterations
-                o["max_iter"] = min(int(o["max_iter"]), GUIDE_STAGE_MAX_ITER)
-                o.update(GUIDE_STAGE_TOLERANCES)
-                tag = "guide"
         elif lam_x is not None and warm_ok and _start_violation(
                 wd, data, K, threads, win, z0, args, hom) <= opt.final_warm_start_max_violation:
             # the previous stage converged near this one's feasible set: primal-dual warm start
@@ -274,15 +282,25 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
             # bounds for hundreds of iterations; hand over the primal point only, barrier from scratch
             args["x0"] = np.clip(z0, args["lbx"], args["ubx"])
             o, tag = dict(base), "main"
-        if last_stage:
+        if not last_stage:  # the surrogate stage only guides: cap its iterations
+            o["max_iter"] = min(int(o["max_iter"]), GUIDE_STAGE_MAX_ITER)
+            o.update(GUIDE_STAGE_TOLERANCES)
+            tag = "guide" if tag == "main" else f"{tag} guide"
+        if last_stage and not rescreens:   # a rescreened final starts from its first try, not the guide
             run.guide_point = None if z0 is None else np.array(z0, float)   # for Options.final_cold_retry
         hessian = opt.final_hessian if last_stage else opt.guide_hessian
-        rows = active_rows(args["lbg"], args["ubg"])
-        nlp, s = get_solver(wd, data.structure, K, o, threads, tag, hessian, rows)
+        nlp = get_nlp(wd, data.structure, K, threads)
         if z0 is not None and hom is True:
             args["x0"] = np.clip(_feasible_slacks(win, nlp, K, args["x0"], args["p"]), args["lbx"], args["ubx"])
+        rows = active_rows(args["lbg"], args["ubg"])
+        screen = None
+        if kinds is not None:
+            screen = _screen(kinds, win, nlp, K, args, Pm, screen_distance)
+            rows = np.setdiff1d(rows, screen.rows, assume_unique=True)
+        nlp, s = get_solver(wd, data.structure, K, o, threads, tag, hessian, rows,
+                            transient=screen is not None)
         kind = "surrogate guide" if not last_stage else "final"
-        stage_name = f"{label}{kind}"
+        stage_name = f"{label}{kind}" + (f" (rescreened {rescreens})" if rescreens else "")
         cb = _CALLBACKS[id(s)]
         cb.sink = run.sink(stage_name, args["lbg"][rows], args["ubg"][rows], stall=last_stage)
         call = dict(args, lbg=args["lbg"][rows], ubg=args["ubg"][rows])
@@ -301,11 +319,12 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
                               feasible_best=feasible_best, timed_out=run.timed_out)
         warm_ok = _converged(status)
         reg = np.asarray(st.get("iterations", {}).get("regularization_size", []), float)
-        start = "warm" if tag == "warm" else ("cold" if z0 is not None else "keyframes")
-        run.stages.append({"stage": stage_name, "exponent": expo, "hard": hard, "status": status,
-                           "ipopt_status": ipopt_status, "start": start,
-                           "iterations": int(st.get("iter_count", 0)), "time": dt, "timing": _timing_split(st, dt),
-                           "regularised_iterations": int(np.count_nonzero(reg > 0))})
+        start = "warm" if tag.startswith("warm") else ("cold" if z0 is not None else "keyframes")
+        record = {"stage": stage_name, "exponent": expo, "hard": hard, "status": status,
+                  "ipopt_status": ipopt_status, "start": start,
+                  "iterations": int(st.get("iter_count", 0)), "time": dt, "timing": _timing_split(st, dt),
+                  "regularised_iterations": int(np.count_nonzero(reg > 0)), "rows": int(len(rows))}
+        run.stages.append(record)
         z0 = np.array(sol["x"]).ravel()
         lam_x = np.array(sol["lam_x"]).ravel()
         lam_g = np.array(sol["lam_g"]).ravel()
@@ -316,7 +335,46 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
         if run.timed_out:
             status = f"time limit {opt.time_limit:.0f} s reached"
             break
+        if screen is not None and not screen.empty:
+            lam_x[screen.slacks] = 0.0   # pinned by the screen, not by the problem
+            near = _screened_rows_near(screen, kinds, win, nlp, K, z0, args, Pm, screen_distance)
+            record["screened_rows"], record["screened_rows_near"] = int(screen.rows.size), near
+            if near and rescreens < MAX_RESCREENS:
+                # a screened row does not hold at the result: the same stage again, screened anew
+                record["status"] = f"{status}; {near} screened rows violated, solved again"
+                rescreens += 1
+                continue
+        si, rescreens = si + 1, 0
     return z0, lam_x, lam_g, status, nlp, args, Pm, lbg, ubg, f_sol
+
+
+#: how many times a stage is solved again because a screened collision row came near its bound at
+#: its result (Options.collision_screen_distance); after that its result is kept as it is and the
+#: checks on the whole problem (penetration) judge it
+MAX_RESCREENS = 2
+
+
+def _self_margin(win: Window, Pm: np.ndarray) -> np.ndarray:
+    return np.asarray(Pm, float)[win.P["self_margin"], :].ravel()
+
+
+def _screen(kinds, win: Window, nlp: AssembledNLP, K: int, args: dict, Pm: np.ndarray,
+            distance: float) -> "screening.Screen":
+    """The collision rows of a stage left out at its start point; their slacks are pinned at 0."""
+    _, g = nlp.F_nlp(args["x0"], args["p"])
+    screen = screening.far_rows(kinds, win, K, np.array(g).ravel(), args["x0"], args["lbg"],
+                                _self_margin(win, Pm), distance)
+    for key in ("lbx", "ubx", "x0"):
+        args[key] = np.array(args[key], float)
+        args[key][screen.slacks] = 0.0
+    return screen
+
+
+def _screened_rows_near(screen, kinds, win: Window, nlp: AssembledNLP, K: int, z, args: dict, Pm: np.ndarray,
+                        distance: float) -> int:
+    _, g = nlp.F_nlp(z, args["p"])
+    return screening.come_near(screen, kinds, win, K, np.array(g).ravel(), z, args["lbg"], _self_margin(win, Pm),
+                               distance)
 
 
 #: stage statuses under which the stage returns its best feasible iterate, not ipopt's last one

@@ -158,8 +158,9 @@ class TONode(Node):
         stats = result.stats
         response.trajectory.solver_statistics = conv.statistics_msg(stats)
         for stage in stats.stages:  # one line per homotopy stage of each segment: where the time went
+            rows = f", {stage['rows']} rows ({stage['screened_rows']} screened out)" if "screened_rows" in stage else ""
             log.info(f"  {stage['stage'].strip()}: {stage['status']}, {stage['iterations']} iterations, "
-                     f"{stage['time']:.1f} s")
+                     f"{stage['time']:.1f} s{rows}")
         log.info(f"{stats.status_message()}; {stats.iterations} iterations, build {stats.build_time:.1f} s, "
                  f"solve {stats.solve_time:.1f} s")
         if not result.success:
