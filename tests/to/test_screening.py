@@ -96,19 +96,19 @@ def test_self_rows_use_the_surface_gap(g1):
     assert ng + row not in far.rows
 
 
-def test_come_near_counts_rows_that_do_not_hold(g1):
+def test_violated_rows_counts_rows_that_do_not_hold(g1):
     _, data, win = _window(g1)
     kinds = screening.row_kinds(win)
     K, ng = data.grid.K, win.G.n
     g, z, lbg = _values(win, K, value=1.0)
     screen = screening.far_rows(kinds, win, K, g, z, lbg, np.zeros(K), 0.1)
-    assert screening.come_near(screen, kinds, win, K, g, z, lbg, np.zeros(K), 0.1) == 0
+    assert screening.violated_rows(screen, kinds, win, K, g, z, lbg, np.zeros(K), 0.1) == 0
     i_f = win.G["floor clearance"].start
     g[7 * ng + i_f] = 0.01     # nearer than the distance but holding: the result stands
-    assert screening.come_near(screen, kinds, win, K, g, z, lbg, np.zeros(K), 0.1) == 0
-    assert screening.come_near(screen, kinds, win, K, g, z, lbg, np.zeros(K), 0.1, fraction=0.5) == 1
+    assert screening.violated_rows(screen, kinds, win, K, g, z, lbg, np.zeros(K), 0.1) == 0
+    assert screening.violated_rows(screen, kinds, win, K, g, z, lbg, np.zeros(K), 0.1, fraction=0.5) == 1
     g[7 * ng + i_f] = -0.002   # past its bound: the stage must be solved again
-    assert screening.come_near(screen, kinds, win, K, g, z, lbg, np.zeros(K), 0.1) == 1
+    assert screening.violated_rows(screen, kinds, win, K, g, z, lbg, np.zeros(K), 0.1) == 1
 
 
 def test_screened_lift_converges_with_fewer_rows(g1):

@@ -112,9 +112,8 @@ def far_rows(kinds: RowKinds, win: Window, K: int, g: np.ndarray, z: np.ndarray,
     return Screen(rows.astype(np.int64), slacks.astype(np.int64))
 
 
-def come_near(screen: Screen, kinds: RowKinds, win: Window, K: int, g: np.ndarray, z: np.ndarray,
-              lbg: np.ndarray, self_margin: np.ndarray, distance: float,
-              fraction: float = 0.0) -> int:
+def violated_rows(screen: Screen, kinds: RowKinds, win: Window, K: int, g: np.ndarray, z: np.ndarray,
+                  lbg: np.ndarray, self_margin: np.ndarray, distance: float, fraction: float = 0.0) -> int:
     """How many of a stage's screened rows are at or past their bound at ``z`` (``fraction`` > 0:
     nearer it than that fraction of the screening distance). Why only those: a screened row that
     holds strictly at a stage's result would have had a zero multiplier there, so the result is a

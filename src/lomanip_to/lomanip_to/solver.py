@@ -337,19 +337,19 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
             break
         if screen is not None and not screen.empty:
             lam_x[screen.slacks] = 0.0   # pinned by the screen, not by the problem
-            near = _screened_rows_near(screen, kinds, win, nlp, K, z0, args, Pm, screen_distance)
-            record["screened_rows"], record["screened_rows_near"] = int(screen.rows.size), near
-            if near and rescreens < MAX_RESCREENS:
+            violated = _screened_rows_violated(screen, kinds, win, nlp, K, z0, args, Pm, screen_distance)
+            record["screened_rows"], record["screened_rows_violated"] = int(screen.rows.size), violated
+            if violated and rescreens < MAX_RESCREENS:
                 # a screened row does not hold at the result: the same stage again, screened anew
-                record["status"] = f"{status}; {near} screened rows violated, solved again"
+                record["status"] = f"{status}; {violated} screened rows violated, solved again"
                 rescreens += 1
                 continue
         si, rescreens = si + 1, 0
     return z0, lam_x, lam_g, status, nlp, args, Pm, lbg, ubg, f_sol
 
 
-#: how many times a stage is solved again because a screened collision row came near its bound at
-#: its result (Options.collision_screen_distance); after that its result is kept as it is and the
+#: how many times a stage is solved again because a screened collision row does not hold at its
+#: result (Options.collision_screen_distance); after that its result is kept as it is and the
 #: checks on the whole problem (penetration) judge it
 MAX_RESCREENS = 2
 
@@ -370,10 +370,10 @@ def _screen(kinds, win: Window, nlp: AssembledNLP, K: int, args: dict, Pm: np.nd
     return screen
 
 
-def _screened_rows_near(screen, kinds, win: Window, nlp: AssembledNLP, K: int, z, args: dict, Pm: np.ndarray,
+def _screened_rows_violated(screen, kinds, win: Window, nlp: AssembledNLP, K: int, z, args: dict, Pm: np.ndarray,
                         distance: float) -> int:
     _, g = nlp.F_nlp(z, args["p"])
-    return screening.come_near(screen, kinds, win, K, np.array(g).ravel(), z, args["lbg"], _self_margin(win, Pm),
+    return screening.violated_rows(screen, kinds, win, K, np.array(g).ravel(), z, args["lbg"], _self_margin(win, Pm),
                                distance)
 
 
