@@ -35,12 +35,12 @@ def _track(sim, tr, seconds, every=10):
     return wbc, eb, ej, ejr, {k: np.array(v) for k, v in sites.items()}
 
 
-def _lift_box_let_go(let_go: float):
+def _lift_box_let_go(let_go: float, options: tuple = ()):
     """case_lift_box's simulation and plan with the hands' contacts cut at ``let_go`` (s): the plan
     lets go of the box there, its motion unchanged."""
     import dataclasses
 
-    sim, tr = simulation("case_lift_box")
+    sim, tr = simulation("case_lift_box", options)
     phases = []
     for ph in tr.phases:
         if ph.start < let_go < ph.end and "left_hand" in ph.contacts:
@@ -563,7 +563,10 @@ def test_hand_contact_released_when_its_object_has_left_the_hand():
     the hands reached after it. Only touch lost is not enough: the grasp point must also be out of
     the arm's planned reach."""
     let_go = 2.0  # the plan's own release: the hands leave the box at 2.0 s instead of holding it to the end
-    sim, tr = _lift_box_let_go(let_go)
+    # the lift planned with every collision row (no screen): the squeeze below was measured on it;
+    # the screened plan (session 58) asks the left hand for 3 N instead of 10.5 N at 1.0 s, and with
+    # this weak squeeze that hand does not yet touch the box there
+    sim, tr = _lift_box_let_go(let_go, (("collision_screen_distance", 0.0),))
     # the squeeze of session 50 and before: with hand_squeeze_lifted's 2.5 cm the arms lunge into
     # the vanished box in step 1 and carry the torso with them, the right grasp point ends 5.7 cm from
     # its hand and is released there (measured); what is tested is the reach criterion
