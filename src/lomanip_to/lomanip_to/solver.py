@@ -289,6 +289,8 @@ def _run_stages(run: _Run, data: ProblemData, win, wd, threads, label: str, z0=N
         if last_stage and not rescreens:   # a rescreened final starts from its first try, not the guide
             run.guide_point = None if z0 is None else np.array(z0, float)   # for Options.final_cold_retry
         hessian = opt.final_hessian if last_stage else opt.guide_hessian
+        if hessian == "exact" and kinds is None:
+            hessian = "exact_full"   # every pair in the NLP: the split would evaluate each at every knot
         nlp = get_nlp(wd, data.structure, K, threads)
         if z0 is not None and hom is True:
             args["x0"] = np.clip(_feasible_slacks(win, nlp, K, args["x0"], args["p"]), args["lbx"], args["ubx"])

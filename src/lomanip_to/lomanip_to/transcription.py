@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 from dataclasses import dataclass
 
 import casadi as ca
@@ -52,6 +53,21 @@ from .layout import Layout, sx_split
 from .model import COP_MARGIN, FEET, GRAVITY, HANDS, G1Model, rpy_rate_matrix, rpy_to_rot, rot_z, sole_force_points
 
 G = 9.81
+
+#: window rows of the collision pairs (robot-object hard and surrogate rows, carried-object rows,
+#: self-collision rows): their curvature is evaluated only where it is not zero (assembly)
+_COLLISION_ROW = re.compile(r"(c\d+) (?:collision|homotopy surrogate)|(e\d+) carried object collision|(self \d+ \d+)")
+
+
+@dataclass(frozen=True)
+class CollisionGroup:
+    """One collision pair's window rows and penalty: zero curvature wherever its multipliers and
+    ``active`` are zero (assembly.WindowDerivatives evaluates it only where they are not)."""
+
+    name: str
+    rows: np.ndarray      # window-row indices
+    penalty: ca.SX        # its share of the cost
+    active: ca.SX         # nonzero where the penalty or its derivatives may be
 #: half size (m) of the hand contact patch (the G1 hand's palm pressed on a face) and the torsional
 #: friction coefficient times its effective radius (m): bounds of the hand patch moment
 HAND_PATCH_HALF = 0.03
@@ -247,6 +263,7 @@ class Window:
         b = ca.SX.sym("b", self.W.n)
         p = ca.SX.sym("p", self.P.n)
         self.a, self.b, self.p = a, b, p
+        self._penalties: dict = {}
         g_blocks, f = self._build(a, b, p)
         self.G = Layout("g")
         exprs = []
@@ -254,7 +271,28 @@ class Window:
             self.G.add(name, e.numel())
             exprs.append(e)
         self.g = ca.vertcat(*exprs)
-        self.f = f
+        self.collision_groups = self._collision_groups()
+        #: the cost without the collision penalties (paper IV-C), which are in ``collision_groups``
+        self.f_main = f
+        self.f = f + sum((grp.penalty for grp in self.collision_groups), ca.SX(0))
+
+    def _collision_penalty(self, group: str, weight, value, active) -> None:
+        """A collision penalty ``weight * value`` of one pair, flat (zero value and derivatives)
+        where ``active`` is 0."""
+        cost, act = self._penalties.get(group, (ca.SX(0), ca.SX(0)))
+        self._penalties[group] = (cost + weight * value, act + ca.fabs(weight) * active)
+
+    def _collision_groups(self) -> list:
+        rows: dict = {}
+        for name, sl in self.G.blocks.items():
+            m = _COLLISION_ROW.fullmatch(name)
+            if m:
+                rows.setdefault(m.group(1) or m.group(2) or m.group(3), []).extend(range(sl.start, sl.stop))
+        groups = []
+        for key in dict.fromkeys(list(rows) + list(self._penalties)):
+            cost, act = self._penalties.get(key, (ca.SX(0), ca.SX(0)))
+            groups.append(CollisionGroup(key, np.asarray(rows.get(key, []), np.int64), cost, act))
+        return groups
 
     # ------------------------------------------------------------------------------------------
     def _build(self, a, b, p):
@@ -538,8 +576,9 @@ class Window:
             Fs = superellipsoid(cl, half, sph.radius, expo)
             s = wa["slack"][i]
             add(f"c{i} homotopy surrogate", Fs - 1 + s)
-            cost += pp["w_stage"] * wpen * ca.fmin(d, 0) ** 2
-            cost += pp["w_stage"] * whom * (pp["w_slack"] * s ** 2 + ca.fmax(1 - Fs, 0) ** 2)
+            self._collision_penalty(f"c{i}", pp["w_stage"] * wpen, ca.fmin(d, 0) ** 2, d <= 0)
+            self._collision_penalty(f"c{i}", pp["w_stage"] * whom, ca.fmax(1 - Fs, 0) ** 2, Fs <= 1)
+            cost += pp["w_stage"] * whom * pp["w_slack"] * s ** 2
         # ---- a carried object's point spheres vs the other objects' primitives: hard rows in every
         # stage.  Without them S2's carry pulled the box off the table through its top edge (22 cm
         # down in 0.2 s) and the wrists followed it into the table (docs/to.md, session 27)
@@ -581,7 +620,7 @@ class Window:
             si, sj = m.spheres[i], m.spheres[j]
             dd = ca.sumsqr(spheres[i] - spheres[j]) - (si.radius + sj.radius + pp["self_margin"]) ** 2
             add(f"self {i} {j}", dd)
-            cost += pp["w_stage"] * pp["w_self"] * ca.fmin(dd, 0) ** 2
+            self._collision_penalty(f"self {i} {j}", pp["w_stage"] * pp["w_self"], ca.fmin(dd, 0) ** 2, dd <= 0)
 
         # ---- stage costs
         x, xd = wa["x"], wa["xd"]
