@@ -522,10 +522,10 @@ def test_grasp_squeeze_scale_scales_the_squeeze_and_keeps_the_net_force():
 def test_grasp_forces_chosen_by_the_qp_keep_their_sum_and_stay_in_their_pyramids():
     """``grasp_force_in_qp``: while the box is carried the QP picks the hands' forces; their sum is the
     net force fed forward and each lies in its friction pyramid of ``mu_grasp`` about its face's
-    normal, however large the squeeze asked for (20 times the plan's here: fixed, that asks for
+    normal, however large the squeeze asked for (30 times the plan's here: fixed, that asks for
     more than the arms' torque limits give)."""
     sim, tr = simulation("case_lift_box")
-    gains = WbcGains(grasp_force_in_qp=True, grasp_squeeze_scale=20.0, mu_grasp=0.5)
+    gains = WbcGains(grasp_force_in_qp=True, grasp_squeeze_scale=30.0, mu_grasp=0.5)
     wbc = WholeBodyController(sim.world, tr, gains)
     sim.set_controller(wbc)
     seen, squeezed = 0, 0.0
@@ -546,10 +546,11 @@ def test_grasp_forces_chosen_by_the_qp_keep_their_sum_and_stay_in_their_pyramids
     assert seen > 50
     assert squeezed > 10.0  # the QP squeezed less than it was asked to
     assert not sim.has_fallen()
-    # the same squeeze fed forward as a fixed force: it falls (at 2.36 s of 2.40; the self-collision
-    # guard, which is not what this compares, catches that collapsing hip in its last 40 ms: off here)
+    # the same squeeze fed forward as a fixed force: it falls (at 2.07 s of 2.40 on session 59's lift
+    # plan; 20 times fell at 2.36 s on session 58's plan and stood on session 59's, so the margin is
+    # wider now; the self-collision guard, which is not what this compares, is off here)
     fixed, tr = simulation("case_lift_box")
-    fixed.set_controller(WholeBodyController(fixed.world, tr, WbcGains(grasp_force_in_qp=False, grasp_squeeze_scale=20.0,
+    fixed.set_controller(WholeBodyController(fixed.world, tr, WbcGains(grasp_force_in_qp=False, grasp_squeeze_scale=30.0,
                                                                         guard_rate=0.0)))
     while fixed.time < tr.duration and not fixed.has_fallen():
         fixed.step()
