@@ -72,7 +72,7 @@ def test_split_hessian_can_be_switched_off(g1):
     data = ProblemData(prob, g1)
     win, _ = solver.get_window(g1, data.structure)
     wd = WindowDerivatives(win, split=False)
-    assert not wd.split and wd.F_h_full is wd.F_h
+    assert not wd.split and wd.F_h is wd.F_h_full
 
 
 def test_jacobian_of_the_nlp_rows_skips_only_left_out_pairs(g1):

@@ -53,27 +53,50 @@ class WindowDerivatives:
         sig = ca.SX.sym("sig")
         self._win, self._sym = win, (a, b, p, sig, lam, z)
         self.F_grad = ca.Function("win_grad", [a, b, p], [ca.gradient(win.f, z)])
-        groups = list(getattr(win, "collision_groups", []))
-        self.split = bool(SPLIT_COLLISION_DERIVATIVES if split is None else split) and bool(groups)
-        if self.split:
-            self._build_split(win, groups)
-        else:
-            H = ca.triu(ca.hessian(sig * win.f + ca.dot(lam, win.g), z)[0])
-            self.H_sp = H.sparsity()
-            self.F_h = ca.Function("win_h", [a, b, p, sig, lam], [ca.vertcat(*H.nonzeros())])
+        H = ca.triu(ca.hessian(sig * win.f + ca.dot(lam, win.g), z)[0])
+        self.H_sp = H.sparsity()
+        self.F_h_full = ca.Function("win_h", [a, b, p, sig, lam], [ca.vertcat(*H.nonzeros())])
+        self._groups = list(getattr(win, "collision_groups", []))
+        self.split = bool(SPLIT_COLLISION_DERIVATIVES if split is None else split) and bool(self._groups)
         self.build_time = time.perf_counter() - t0
 
-    def _build_split(self, win: Window, groups: list) -> None:
+    @property
+    def F_h(self) -> ca.Function:
+        """The window's Lagrangian Hessian: split by collision pair (built at first use) or one piece."""
+        return self._split["F_h"] if self.split else self.F_h_full
+
+    @property
+    def F_active(self) -> ca.Function:
+        """(a, b, p, sig, lam) -> 1 per collision pair whose curvature is evaluated."""
+        return self._split["F_active"]
+
+    @property
+    def F_j_on(self) -> ca.Function:
+        """(a, b, p, on) -> Jacobian nonzeros, each collision pair's only where ``on`` is 1."""
+        return self._split["F_j_on"]
+
+    @property
+    def group_rows(self) -> list:
+        return [grp.rows for grp in self._groups]
+
+    @cached_property
+    def _split(self) -> dict:
+        t0 = time.perf_counter()
+        out = self._build_split(self._win, self._groups)
+        self.build_time += time.perf_counter() - t0
+        return out
+
+    def _build_split(self, win: Window, groups: list) -> dict:
         a, b, p, sig, lam, z = self._sym
         col = np.concatenate([grp.rows for grp in groups])
         main = np.setdiff1d(np.arange(self.ng), col).tolist()
         H_main = ca.triu(ca.hessian(sig * win.f_main + ca.dot(lam[main], win.g[main]), z)[0])
         H_grp = [ca.triu(ca.hessian(sig * grp.penalty + ca.dot(lam[grp.rows.tolist()], win.g[grp.rows.tolist()]), z)[0])
                  for grp in groups]
-        sp = H_main.sparsity()
-        for H in H_grp:
-            sp = sp.unite(H.sparsity())
-        self.H_sp = sp
+        # each part on its entries of the whole Hessian's sparsity: the Hessian is linear in the
+        # Lagrangian's terms, so where the whole one is structurally zero the parts sum to zero
+        sp = self.H_sp
+        H_grp = [ca.project(H, H.sparsity() * sp) for H in H_grp]
         args = [a, b, p, sig, lam]
         h_main = ca.Function("win_h_main", args, [ca.vertcat(*ca.project(H_main, sp).nonzeros())])
         # per pair: is its curvature (multipliers or penalty) / its gradient (penalty) nonzero?
@@ -89,10 +112,7 @@ class WindowDerivatives:
                 F = ca.Function.conditional(f"win_h_{i}", ca.Function(f"h_{i}", args, [ca.vertcat(*H.nonzeros())]))
                 h_parts.append(F(flags[i], A, B, P, S, L))
         h = h_main(A, B, P, S, L) + _scatter_sum(h_parts, h_pos, sp.nnz())
-        self.F_h = ca.Function("win_h", [A, B, P, S, L], [h])
-        self.F_active = F_act
         # the Jacobian: the rest's rows, plus each pair's rows where ``on`` (the NLP's rows) has them
-        self.group_rows = [grp.rows for grp in groups]
         on = ca.MX.sym("on", len(groups))
         Jm = ca.jacobian(win.g[main], ca.vertcat(a, b))
         j_parts, j_pos = [], []
@@ -105,7 +125,8 @@ class WindowDerivatives:
         j_main = ca.Function("win_j_main", [a, b, p], [ca.vertcat(*Jm.nonzeros())])
         jac = _scatter_sum([j_main(A, B, P)] + j_parts, [_positions(self.J_sp, Jm.sparsity(), main)] + j_pos,
                            self.J_sp.nnz())
-        self.F_j_on = ca.Function("win_j_on", [A, B, P, on], [jac])
+        return {"F_h": ca.Function("win_h_split", [A, B, P, S, L], [h]), "F_active": F_act,
+                "F_j_on": ca.Function("win_j_on", [A, B, P, on], [jac])}
 
     def groups_on(self, rows: np.ndarray, K: int) -> np.ndarray:
         """n_groups x K: 1 where the NLP's ``rows`` (global indices) hold one of the pair's rows."""
@@ -113,18 +134,6 @@ class WindowDerivatives:
         sel[np.asarray(rows, np.int64)] = True
         sel = sel.reshape(K, self.ng)
         return np.array([sel[:, r].any(axis=1) for r in self.group_rows], float).reshape(len(self.group_rows), K)
-
-    @cached_property
-    def F_h_full(self) -> ca.Function:
-        """The whole window's Lagrangian Hessian in one SX Function, on the same sparsity as
-        ``F_h``: faster than the split where most pairs are active (no collision screen)."""
-        if not self.split:
-            return self.F_h
-        a, b, p, sig, lam, z = self._sym
-        # the Hessian is linear in the Lagrangian's terms, so entries outside the parts' union
-        # (a few, structural only, e.g. 2 of 3957 in case_lift_box) are zero: projected away
-        H = ca.project(ca.triu(ca.hessian(sig * self._win.f + ca.dot(lam, self._win.g), z)[0]), self.H_sp)
-        return ca.Function("win_h_full", [a, b, p, sig, lam], [ca.vertcat(*H.nonzeros())])
 
     @cached_property
     def F_h_cost(self) -> ca.Function:
@@ -231,11 +240,14 @@ class AssembledNLP:
                    np.ones(len(rows)))
         self._wd, self._hess_args = wd, (z, p, A, B, Pm, Sh, sp_h, mode, threads)
         self._hessians: dict = {}
-        self.F_hess = self.hessian("exact")
         self.nnz_hess = nu
         self.z_sym, self.p_sym = z, p
         self.f_expr, self.g_expr = f, g
         self.build_time = time.perf_counter() - t0
+
+    @property
+    def F_hess(self) -> ca.Function:
+        return self.hessian("exact")
 
     def hessian(self, kind: str = "exact") -> ca.Function:
         """``hess_lag(z, p, lam_f, lam_g)`` of the whole NLP: "exact" (Lagrangian; each collision
