@@ -99,7 +99,7 @@ class WindowDerivatives:
         H_grp = [ca.project(H, H.sparsity() * sp) for H in H_grp]
         args = [a, b, p, sig, lam]
         h_main = ca.Function("win_h_main", args, [ca.vertcat(*ca.project(H_main, sp).nonzeros())])
-        # per pair: is its curvature (multipliers or penalty) / its gradient (penalty) nonzero?
+        # per pair: may its curvature be nonzero (a multiplier, or its penalty's indicator)?
         act_h = ca.vertcat(*[grp.active + ca.sum1(ca.fabs(lam[grp.rows.tolist()])) for grp in groups]) > 0
         F_act = ca.Function("win_collision_active", args, [act_h])
         A, B, P = ca.MX.sym("a", self.nw), ca.MX.sym("b", self.nw), ca.MX.sym("p", self.np)

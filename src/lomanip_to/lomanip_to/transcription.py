@@ -68,6 +68,8 @@ class CollisionGroup:
     rows: np.ndarray      # window-row indices
     penalty: ca.SX        # its share of the cost
     active: ca.SX         # nonzero where the penalty or its derivatives may be
+
+
 #: half size (m) of the hand contact patch (the G1 hand's palm pressed on a face) and the torsional
 #: friction coefficient times its effective radius (m): bounds of the hand patch moment
 HAND_PATCH_HALF = 0.03
