@@ -8,15 +8,23 @@ from lomanip_to.discretize import ProblemData
 from lomanip_to.fixtures import load_problem
 
 
-def test_assembled_derivatives_match_casadi(g1):
+def _lift_box(g1):
+    """(problem, ProblemData, Window, WindowDerivatives) of case_lift_box, the small case with box pairs."""
     prob = load_problem("case_lift_box", model=g1)
     data = ProblemData(prob, g1)
-    win, wd = solver.get_window(g1, data.structure)
-    K = 3
+    return (prob, data) + tuple(solver.get_window(g1, data.structure))
+
+
+def _random_nlp_point(wd, K: int, seed: int):
+    """A K-knot NLP on one thread, a random point and random parameters."""
     nlp = AssembledNLP(wd, K, threads=1)
-    rng = np.random.default_rng(1)
-    z = rng.normal(scale=0.1, size=nlp.nz)
-    p = rng.uniform(0.1, 1.0, size=nlp.npar)
+    rng = np.random.default_rng(seed)
+    return nlp, rng, rng.normal(scale=0.1, size=nlp.nz), rng.uniform(0.1, 1.0, size=nlp.npar)
+
+
+def test_assembled_derivatives_match_casadi(g1):
+    _, _, win, wd = _lift_box(g1)
+    nlp, rng, z, p = _random_nlp_point(wd, 3, seed=1)
     lam_g = rng.normal(size=nlp.ngg)
     # reference: differentiate the global (mapped) expressions directly
     f, g = nlp.f_expr, nlp.g_expr
@@ -43,9 +51,7 @@ def test_assembled_derivatives_match_casadi(g1):
 def test_split_hessian_skips_only_zero_collision_curvature(g1):
     """The Hessian that evaluates each collision pair only where its multipliers or penalty are
     nonzero equals the whole window's Hessian, with pairs skipped and pairs evaluated."""
-    prob = load_problem("case_lift_box", model=g1)
-    data = ProblemData(prob, g1)
-    win, wd = solver.get_window(g1, data.structure)
+    prob, data, win, wd = _lift_box(g1)
     assert wd.split and win.collision_groups
     stages = solver.homotopy_stages(prob.options, data)
     rng = np.random.default_rng(2)
@@ -68,9 +74,7 @@ def test_split_hessian_skips_only_zero_collision_curvature(g1):
 
 
 def test_split_hessian_can_be_switched_off(g1):
-    prob = load_problem("case_lift_box", model=g1)
-    data = ProblemData(prob, g1)
-    win, _ = solver.get_window(g1, data.structure)
+    _, _, win, _ = _lift_box(g1)
     wd = WindowDerivatives(win, split=False)
     assert not wd.split and wd.F_h is wd.F_h_full
 
@@ -78,14 +82,9 @@ def test_split_hessian_can_be_switched_off(g1):
 def test_jacobian_of_the_nlp_rows_skips_only_left_out_pairs(g1):
     """With a row selection (the collision screen's), the Jacobian evaluates a pair only at knots
     where the selection holds its rows; the selected rows equal the whole Jacobian's."""
-    prob = load_problem("case_lift_box", model=g1)
-    data = ProblemData(prob, g1)
-    win, wd = solver.get_window(g1, data.structure)
+    _, _, win, wd = _lift_box(g1)
     K = 4
-    nlp = AssembledNLP(wd, K, threads=1)
-    rng = np.random.default_rng(3)
-    z = rng.normal(scale=0.1, size=nlp.nz)
-    p = rng.uniform(0.1, 1.0, size=nlp.npar)
+    nlp, _, z, p = _random_nlp_point(wd, K, seed=3)
     keep = np.ones(nlp.ngg, bool)
     for i, grp in enumerate(win.collision_groups):
         for k in range(K):
