@@ -91,8 +91,8 @@ class WindowDerivatives:
         col = np.concatenate([grp.rows for grp in groups])
         main = np.setdiff1d(np.arange(self.ng), col).tolist()
         H_main = ca.triu(ca.hessian(sig * win.f_main + ca.dot(lam[main], win.g[main]), z)[0])
-        H_grp = [ca.triu(ca.hessian(sig * grp.penalty + ca.dot(lam[grp.rows.tolist()], win.g[grp.rows.tolist()]), z)[0])
-                 for grp in groups]
+        rows = [grp.rows.tolist() for grp in groups]
+        H_grp = [ca.triu(ca.hessian(sig * grp.penalty + ca.dot(lam[r], win.g[r]), z)[0]) for grp, r in zip(groups, rows)]
         # each part on its entries of the whole Hessian's sparsity: the Hessian is linear in the
         # Lagrangian's terms, so where the whole one is structurally zero the parts sum to zero
         sp = self.H_sp
@@ -100,7 +100,7 @@ class WindowDerivatives:
         args = [a, b, p, sig, lam]
         h_main = ca.Function("win_h_main", args, [ca.vertcat(*ca.project(H_main, sp).nonzeros())])
         # per pair: may its curvature be nonzero (a multiplier, or its penalty's indicator)?
-        act_h = ca.vertcat(*[grp.active + ca.sum1(ca.fabs(lam[grp.rows.tolist()])) for grp in groups]) > 0
+        act_h = ca.vertcat(*[grp.active + ca.sum1(ca.fabs(lam[r])) for grp, r in zip(groups, rows)]) > 0
         F_act = ca.Function("win_collision_active", args, [act_h])
         A, B, P = ca.MX.sym("a", self.nw), ca.MX.sym("b", self.nw), ca.MX.sym("p", self.np)
         S, L = ca.MX.sym("sig"), ca.MX.sym("lam", self.ng)
@@ -114,10 +114,10 @@ class WindowDerivatives:
         h = h_main(A, B, P, S, L) + _scatter_sum(h_parts, h_pos, sp.nnz())
         # the Jacobian: the rest's rows, plus each pair's rows where ``on`` (the NLP's rows) has them
         on = ca.MX.sym("on", len(groups))
-        Jm = ca.jacobian(win.g[main], ca.vertcat(a, b))
+        Jm = ca.jacobian(win.g[main], z)
         j_parts, j_pos = [], []
-        for i, grp in enumerate(groups):
-            Jg = ca.jacobian(win.g[grp.rows.tolist()], ca.vertcat(a, b))
+        for i, (grp, r) in enumerate(zip(groups, rows)):
+            Jg = ca.jacobian(win.g[r], z)
             if Jg.nnz():
                 j_pos.append(_positions(self.J_sp, Jg.sparsity(), grp.rows))
                 F = ca.Function.conditional(f"win_j_{i}", ca.Function(f"j_{i}", [a, b, p], [ca.vertcat(*Jg.nonzeros())]))
@@ -279,8 +279,8 @@ class AssembledNLP:
 
     def solver(self, ipopt_opts: dict, iteration_callback=None, hessian: str = "exact",
                rows: np.ndarray | None = None) -> ca.Function:
-        """ipopt on the assembled NLP; ``hessian`` "exact" (Lagrangian) or "cost" (constraint
-        curvature dropped).  ``rows`` (sorted indices into g) keeps only those constraint rows.
+        """ipopt on the assembled NLP; ``hessian`` a kind of :meth:`hessian` ("exact", "exact_full",
+        "cost": constraint curvature dropped).  ``rows`` (sorted indices into g) keeps only those constraint rows.
 
         Why ``rows``: one window Function serves every knot, so a row that does not apply at a knot
         is switched off with infinite bounds.  ipopt keeps such a row (and a free slack for it) in
