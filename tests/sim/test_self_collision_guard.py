@@ -1,4 +1,4 @@
-"""self_collision_guard: barrier rows that keep the pelvis off the G1's hip links, alone and in the QP."""
+"""self_collision_guard: barrier rows that keep the pelvis off the G1's hip links and the hands off the legs, alone and in the QP."""
 
 import mujoco
 import numpy as np
@@ -6,7 +6,7 @@ import pytest
 from to_cases import simulation
 
 from lomanip_sim.robot_model import G1_JOINT_NAMES
-from lomanip_sim.self_collision_guard import HIP_PAIRS, SelfCollisionGuard
+from lomanip_sim.self_collision_guard import HAND_LEG_PAIRS, HIP_PAIRS, SelfCollisionGuard
 from lomanip_sim.wbc import WbcGains, WholeBodyController
 
 PAIR = ("pelvis", "right_hip_roll_link")
@@ -81,3 +81,41 @@ def test_qp_decelerates_a_hip_closing_on_the_pelvis():
     free.compute(sim.data)
     assert free.guard_rows == []
     assert r.row @ free.last_qdd < 0.0
+
+
+HAND_PAIR = ("right_wrist_yaw_link", "right_hip_pitch_link")
+
+
+def _arm(sim_or_q, roll: float, adr=None) -> None:
+    """Set the right arm hanging with the elbow bent (1.2 rad), shoulder pitch 0.2 rad, at shoulder ``roll``."""
+    for name, q in (("right_shoulder_roll_joint", roll), ("right_shoulder_pitch_joint", 0.2), ("right_elbow_joint", 1.2)):
+        sim_or_q[..., adr[G1_JOINT_NAMES.index(name)] if adr is not None else G1_JOINT_NAMES.index(name)] = q
+
+
+def test_every_hand_leg_pair_is_found_on_the_model():
+    sim, _tr = simulation("case_stand")
+    guard = SelfCollisionGuard(sim.model, HAND_LEG_PAIRS)
+    assert [p for p, *_ in guard.pairs] == list(HAND_LEG_PAIRS)
+    # the wrist-yaw link carries the sim's hand box and the wrist mesh: both are guarded
+    assert all(len(geoms) == 2 for _p, _a, _b, geoms in guard.pairs)
+
+
+def test_qp_keeps_a_hand_off_its_hip():
+    """A plan that hangs the right hand 3.7 cm inside its hip (shoulder roll -0.05 rad) with the
+    robot's hand 5 mm off it (-0.15 rad): with the hand pairs the QP's accelerations obey the
+    barrier row; with ``guard_hands`` off the hand and posture tasks drive the hand into the hip."""
+    sim, tr = simulation("case_stand")
+    _arm(tr.q, -0.05)
+    _arm(sim.data.qpos, -0.15, sim.world.joint_qpos_adr)
+    sim.data.qvel[:] = 0.0
+    mujoco.mj_forward(sim.model, sim.data)
+    guarded = WholeBodyController(sim.world, tr, WbcGains())
+    guarded.compute(sim.data)
+    rows = {r.pair: r for r in guarded.guard_rows}
+    assert HAND_PAIR in rows and 0.0 < rows[HAND_PAIR].distance < 0.006
+    r = rows[HAND_PAIR]
+    assert r.row @ guarded.last_qdd >= r.lower - 1e-6
+    free = WholeBodyController(sim.world, tr, WbcGains(guard_hands=False))
+    free.compute(sim.data)
+    assert all(p in HIP_PAIRS for p in (g.pair for g in free.guard_rows))
+    assert r.row @ free.last_qdd < r.lower

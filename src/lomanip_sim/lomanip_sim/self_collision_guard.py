@@ -24,6 +24,15 @@ import numpy as np
 HIP_PAIRS: tuple[tuple[str, str], ...] = tuple(
     ("pelvis", f"{side}_{link}_link") for side in ("left", "right") for link in ("hip_roll", "hip_yaw"))
 
+#: each hand (the wrist-yaw link: the sim's 13 x 7 x 11 cm hand box and the wrist mesh) against its
+#: own side's hip links and knee. The TO models the hand as two 4 cm spheres, which the box's edges
+#: overhang by up to 2.3 cm: the demo push's 8 layout plans all hang a hand box 1.4-3.0 cm inside
+#: a hip link on MuJoCo's meshes, and executed, far_left's swinging left hip struck the hanging left
+#: hand (22 N) and the robot fell (docs/execution.md, session 60)
+HAND_LEG_PAIRS: tuple[tuple[str, str], ...] = tuple(
+    (f"{side}_wrist_yaw_link", f"{side}_{link}_link") for side in ("left", "right")
+    for link in ("hip_pitch", "hip_roll", "hip_yaw", "knee"))
+
 
 @dataclass
 class GuardRow:

@@ -25,7 +25,8 @@ planned reach) is released until the plan's own release: no hand force, the arm 
 posture (``WbcGains.hand_release``).
 
 Barrier rows on qdd (lomanip_sim.self_collision_guard, ``WbcGains.guard_rate``) keep the pelvis off
-the hip-roll and hip-yaw links' meshes, a pair the TO bounds in joint space only.
+the hip-roll and hip-yaw links' meshes, a pair the TO bounds in joint space only, and each hand's box
+off its own hip links and knee, which the TO's hand spheres under-cover (``WbcGains.guard_hands``).
 
 Named simplifications: the foot moment reference is not tracked (only the net planned foot force;
 the QP distributes the corner forces); the CoM acceleration term J_dot v is neglected (site terms
@@ -47,7 +48,7 @@ from .robot_model import (FOOT_BODIES, FOOT_CONTACT_POINTS, FOOT_SITES, FOOT_SOL
 from .contact_forces import LimbForceMeter
 from .hand_approach import approach_lift, retreat_lift, smoothstep
 from .hand_detour import Detour, HandBoxProbe, ObjectsAsObstacles, detour, movable_bodies, static_obstacle_geoms
-from .self_collision_guard import GuardRow, SelfCollisionGuard
+from .self_collision_guard import HAND_LEG_PAIRS, HIP_PAIRS, GuardRow, SelfCollisionGuard
 from .trajectory import FEET, HANDS, Trajectory
 from .world import World
 
@@ -456,6 +457,9 @@ class WbcGains:
     guard_rate: float = 10.0
     guard_activation: float = 0.02
     guard_min_distance: float = 0.001
+    # the guard also keeps each hand off its own hip links and knee (HAND_LEG_PAIRS): the TO's two
+    # hand spheres leave the sim's hand box's edges out by up to 2.3 cm
+    guard_hands: bool = True
 
 
 @dataclass
@@ -617,7 +621,8 @@ class WholeBodyController:
         root = int(m.body_rootid[self.pelvis])
         self._robot_bodies = [b for b in range(1, m.nbody) if int(m.body_rootid[b]) == root and m.body_mass[b] > 0]
         self._angmom_prev: tuple[float, np.ndarray] | None = None  # (time, A_L) of the last step
-        self.guard = (SelfCollisionGuard(m, activation=self.g.guard_activation, rate=self.g.guard_rate,
+        pairs = HIP_PAIRS + (HAND_LEG_PAIRS if self.g.guard_hands else ())
+        self.guard = (SelfCollisionGuard(m, pairs, activation=self.g.guard_activation, rate=self.g.guard_rate,
                                          min_distance=self.g.guard_min_distance) if self.g.guard_rate > 0 else None)
         self.guard_rows: list[GuardRow] = []  # the self-collision guard's active rows, last step
 
