@@ -6,6 +6,7 @@ import pytest
 from to_cases import simulation
 
 from lomanip_sim.robot_model import G1_JOINT_NAMES
+from lomanip_sim.trajectory import LimbContact, Phase
 from lomanip_sim.self_collision_guard import HAND_LEG_PAIRS, HIP_PAIRS, SelfCollisionGuard
 from lomanip_sim.wbc import WbcGains, WholeBodyController
 
@@ -119,3 +120,63 @@ def test_qp_keeps_a_hand_off_its_hip():
     free.compute(sim.data)
     assert all(p in HIP_PAIRS for p in (g.pair for g in free.guard_rows))
     assert r.row @ free.last_qdd < r.lower
+
+
+def _stand_before_a_box(gap: float):
+    """case_stand's plan in a world with a free 20 cm box ``gap`` m in front of the right hand box."""
+    from lomanip_sim import scene_world
+    from lomanip_sim.simulator import Simulation
+
+    sim, tr = simulation("case_stand")
+    m, d = sim.model, sim.data
+    g = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "right_hand_collision")
+    mujoco.mj_forward(m, d)
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    corners = d.geom_xpos[g] + (signs * m.geom_size[g]) @ d.geom_xmat[g].reshape(3, 3).T
+    front = corners[:, 0].max()
+    box = scene_world.SceneObjectSpec("box", "box", True, (front + gap + 0.1, float(d.geom_xpos[g][1]), float(d.geom_xpos[g][2])),
+                                      (1.0, 0.0, 0.0, 0.0), 1.0, (scene_world.ScenePrimitive("box", (0.2, 0.2, 0.2)),))
+    world = scene_world.build_scene_world([box], robot_qpos=tr.qpos(0))
+    return Simulation(world), tr
+
+
+def test_qp_keeps_a_free_hand_off_a_movable_object():
+    """A plan whose right arm reaches 0.12 rad further forward, into a box the robot's hand box is
+    5 mm from: with the object rows the QP's accelerations obey the barrier, with the hand's own
+    arm alone (the row has no other columns); with ``guard_hand_objects`` off the hand task drives
+    the hand into the box."""
+    sim, tr = _stand_before_a_box(0.005)
+    j = G1_JOINT_NAMES.index("right_shoulder_pitch_joint")
+    tr.q[..., j] = tr.q[..., j] - 0.12   # forward
+    mujoco.mj_forward(sim.model, sim.data)
+    guarded = WholeBodyController(sim.world, tr, WbcGains())
+    guarded.compute(sim.data)
+    rows = {r.pair: r for r in guarded.guard_rows}
+    pair = ("right_wrist_yaw_link", "box")
+    assert pair in rows and 0.003 < rows[pair].distance < 0.007
+    r = rows[pair]
+    assert r.row @ guarded.last_qdd >= r.lower - 1e-6
+    arm = [i + 6 for i, n in enumerate(G1_JOINT_NAMES) if n.startswith("right_")
+           and any(k in n for k in ("shoulder", "elbow", "wrist"))]
+    assert np.all(np.delete(r.row, arm) == 0.0) and np.any(r.row[arm] != 0.0)
+    free = WholeBodyController(sim.world, tr, WbcGains(guard_hand_objects=False))
+    free.compute(sim.data)
+    assert pair not in {g.pair for g in free.guard_rows}
+    assert r.row @ free.last_qdd < r.lower - 1.0
+
+
+def test_object_rows_are_off_in_and_just_after_a_hand_contact():
+    """The hand's object rows are off while the plan has it in contact, and for
+    ``guard_object_release`` s after."""
+    sim, tr = _stand_before_a_box(0.005)
+    w = WholeBodyController(sim.world, tr, WbcGains())
+    assert w._object_free["right_hand"].all()   # case_stand: no hand contact
+    ph = tr.phases[0]
+    hold = LimbContact("box", np.zeros(3), np.array([-1.0, 0.0, 0.0]))
+    w.traj.phases = [Phase(0.0, 0.3, ph.contacts), Phase(0.3, 0.6, {**ph.contacts, "right_hand": hold}),
+                     Phase(0.6, tr.t[-1], ph.contacts)]
+    free = w._free_of_objects("right_hand")
+    t = tr.t
+    assert free[t < 0.3].all() and free[t > 0.6 + w.g.guard_object_release].all()
+    assert not free[(t >= 0.3) & (t <= 0.6 + w.g.guard_object_release)].any()
+    assert w._free_of_objects("left_hand").all()

@@ -63,6 +63,20 @@ class SelfCollisionGuard:
         self._ja = np.zeros((3, model.nv))
         self._jb = np.zeros((3, model.nv))
 
+    def guard_object(self, a: str, root: int) -> tuple[str, str]:
+        """Add the pair of body ``a`` and every collision geom of the free object rooted at body
+        ``root`` (its wheels, handle, ...); returns the pair's key for :meth:`rows`' ``skip``."""
+        m = self.model
+        ia = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, a)
+        if ia < 0:
+            raise ValueError(f"self-collision guard: no body {a!r} in the model")
+        key = (a, m.body(root).name)
+        bodies = [b for b in range(m.nbody) if m.body_rootid[b] == root]
+        geoms = [(ga, gb) for ga in self._collision_geoms(ia) for b in bodies for gb in self._collision_geoms(b)]
+        if geoms:
+            self.pairs.append((key, ia, root, geoms))
+        return key
+
     def _collision_geoms(self, body: int) -> list[int]:
         m = self.model
         return [g for g in range(m.ngeom) if m.geom_bodyid[g] == body and (m.geom_contype[g] or m.geom_conaffinity[g])]
@@ -71,17 +85,23 @@ class SelfCollisionGuard:
         """(signed distance, point on a, point on b) of the closest geom pair; distance capped at
         ``activation`` (then the points are meaningless)."""
         best, pa, pb = np.inf, np.zeros(3), np.zeros(3)
+        xpos, rbound = data.geom_xpos, self.model.geom_rbound
         for ga, gb in geoms:
+            if np.linalg.norm(xpos[ga] - xpos[gb]) - rbound[ga] - rbound[gb] >= self.activation:
+                continue   # bounding spheres apart by more than the activation distance
             d = mujoco.mj_geomDistance(self.model, data, ga, gb, self.activation, self._fromto)
             if d < best:
                 best, pa, pb = d, self._fromto[:3].copy(), self._fromto[3:].copy()
         return float(best), pa, pb
 
-    def rows(self, data: mujoco.MjData, dofs: slice) -> list[GuardRow]:
-        """The rows of the pairs nearer than ``activation`` (columns: the robot's dofs)."""
+    def rows(self, data: mujoco.MjData, dofs: slice, skip=frozenset()) -> list[GuardRow]:
+        """The rows of the pairs nearer than ``activation`` (columns: the robot's dofs), but
+        those whose key is in ``skip``."""
         out = []
         v = data.qvel[dofs]
         for pair, ia, ib, geoms in self.pairs:
+            if pair in skip:
+                continue
             d, pa, pb = self.closest(data, geoms)
             if d >= self.activation:
                 continue

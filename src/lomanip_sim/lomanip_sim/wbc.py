@@ -460,6 +460,14 @@ class WbcGains:
     # the guard also keeps each hand off its own hip links and knee (HAND_LEG_PAIRS): the TO's two
     # hand spheres leave the sim's hand box's edges out by up to 2.3 cm
     guard_hands: bool = True
+    # the guard also keeps a free hand's box off each movable object (trolley, box, basket) until the
+    # hand's next contact with anything starts, and from guard_object_release s after a contact ends.
+    # Why: the approach references come within 1 cm of the object a second before the grasp, and a
+    # hand lagging its reference by 2-5 cm struck the trolley's handle before the grasp (make demo,
+    # session 59: the right hand at 1.92 s, 30 N; the trolley rolled 12 cm ahead of its plan)
+    guard_hand_objects: bool = True
+    guard_object_release: float = 0.3
+    guard_object_min_distance: float = 0.003
 
 
 @dataclass
@@ -624,6 +632,18 @@ class WholeBodyController:
         pairs = HIP_PAIRS + (HAND_LEG_PAIRS if self.g.guard_hands else ())
         self.guard = (SelfCollisionGuard(m, pairs, activation=self.g.guard_activation, rate=self.g.guard_rate,
                                          min_distance=self.g.guard_min_distance) if self.g.guard_rate > 0 else None)
+        self.object_guard = None
+        self._object_pairs: dict[str, list[tuple[str, str]]] = {}
+        self._object_free = {}  # hand -> (N,) bool: its object rows are on (no contact near)
+        objects = movable_bodies(m, root)
+        if self.g.guard_rate > 0 and self.g.guard_hand_objects and objects:
+            self.object_guard = SelfCollisionGuard(m, (), activation=self.g.guard_activation, rate=self.g.guard_rate,
+                                                   min_distance=self.g.guard_object_min_distance)
+            for limb in HANDS:
+                body = m.body(int(m.site_bodyid[self.site_id[limb]])).name
+                self._object_pairs[limb] = [self.object_guard.guard_object(body, b) for b in objects]
+                self._object_free[limb] = self._free_of_objects(limb)
+        self._hand_of_pair = {k: limb for limb, keys in self._object_pairs.items() for k in keys}
         self.guard_rows: list[GuardRow] = []  # the self-collision guard's active rows, last step
 
     # ---------------------------------------------------------------------------- references
@@ -1105,6 +1125,15 @@ class WholeBodyController:
         for ph in tr.phases:
             if limb in ph.contacts:
                 out |= (tr.t >= ph.start) & (tr.t <= ph.end)
+        return out
+
+    def _free_of_objects(self, limb: str) -> np.ndarray:
+        """(N,) bool: the hand is in no contact phase and ``guard_object_release`` s past its last one."""
+        tr = self.traj
+        out = np.ones(tr.n, bool)
+        for ph in tr.phases:
+            if limb in ph.contacts:
+                out &= ~((tr.t >= ph.start) & (tr.t <= ph.end + self.g.guard_object_release))
         return out
 
     def _near_contact(self, limb: str) -> np.ndarray:
@@ -1721,6 +1750,13 @@ class WholeBodyController:
         Hy = H[NJ:, NJ:] + g.reg_tau * (B.T @ B)
         fy = f[NJ:] - g.reg_tau * (B.T @ c)
         self.guard_rows = self.guard.rows(data, dofs) if self.guard is not None else []
+        if self.object_guard is not None:
+            skip = {k for limb, keys in self._object_pairs.items()
+                    if not (self._object_free[limb][i] and self._object_free[limb][min(i + 1, tr.n - 1)]) for k in keys}
+            rows = self.object_guard.rows(data, dofs, skip)
+            for r in rows:   # the hand's own arm keeps it off: as a free hand's task, the row may not move the body
+                r.row = self._on_arm(r.row[None, :], self._hand_of_pair[r.pair])[0]
+            self.guard_rows = self.guard_rows + rows
         Aguard = np.zeros((len(self.guard_rows), nx - NJ))
         for k, gr in enumerate(self.guard_rows):
             Aguard[k, :NV] = gr.row   # y starts with qdd
