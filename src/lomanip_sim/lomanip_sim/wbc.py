@@ -26,7 +26,9 @@ posture (``WbcGains.hand_release``).
 
 Barrier rows on qdd (lomanip_sim.self_collision_guard, ``WbcGains.guard_rate``) keep the pelvis off
 the hip-roll and hip-yaw links' meshes, a pair the TO bounds in joint space only, and each hand's box
-off its own hip links and knee, which the TO's hand spheres under-cover (``WbcGains.guard_hands``).
+off its own hip links and knee, which the TO's hand spheres under-cover (``WbcGains.guard_hands``);
+rows on a hand's own arm keep its box off the movable objects while it has no contact near
+(``WbcGains.guard_hand_objects``).
 
 Named simplifications: the foot moment reference is not tracked (only the net planned foot force;
 the QP distributes the corner forces); the CoM acceleration term J_dot v is neglected (site terms
