@@ -13,7 +13,8 @@ stance sole (is a sole on its edge asked for, or pushed there?); ``--grip`` adds
 a hand's arm on the object the plan has it hold (where on the box each hand presses, and how near
 to sliding: tangential over normal force against the friction coefficient); ``--joints`` adds the
 named joints' measured and planned angles, ranges and torques against their limits (a leg at its
-torque limit in S1's step onto the box, docs/execution.md session 50).
+torque limit in S1's step onto the box, docs/execution.md session 50). ``--guard`` adds the
+controller's active barrier rows (a hand held off its hip or off the handle, session 60).
 
     .venv/bin/python tools/exec_trace.py runs/bench_to/s2_trolley_mass2.5_yaw0_all.npz --start 4 --stop 6.5
     .venv/bin/python tools/exec_trace.py <npz> --gains '{"grasp_squeeze_scale": 2.0}'
@@ -70,7 +71,7 @@ def _object_contacts(ex) -> str:
 
 
 def trace_line(ex, objects: list[str], cop: bool = False, grip: bool = False, contacts: bool = False,
-               joints: tuple[str, ...] = ()) -> str:
+               joints: tuple[str, ...] = (), guard: bool = False) -> str:
     """One line of the trace at the execution's current time; ``cop``: each stance sole's centre of
     pressure as the controller's QP chose it beside the measured one; ``grip``: each contact of a
     hand's arm on the object the plan has it hold (link, point in the object body's frame, normal
@@ -139,6 +140,10 @@ def trace_line(ex, objects: list[str], cop: bool = False, grip: bool = False, co
             tau, lim = w._last_tau[j], w.limits[j]
             parts.append(f"{name.removesuffix('_joint')} {d.qpos[m.jnt_qposadr[jid]]:+.3f}/{q_ref[j]:+.3f} [{lo:+.2f},{hi:+.2f}]"
                          f" tau {tau:+5.1f}/{lim:.0f}")
+    if guard:   # the controller's barrier rows of the last step: pair, distance, bound on its acceleration
+        rows = " ".join(f"[{a} / {b} {100 * gr.distance:.1f} cm >= {gr.lower:+.1f}]" for gr in ex.wbc.guard_rows
+                        for a, b in [gr.pair])
+        parts.append(f"guard {rows or 'none'}")
     if contacts:
         parts.append(f"contacts {_object_contacts(ex) or 'none'}")
     return " | ".join(parts)
@@ -178,6 +183,8 @@ def main() -> int:
                     "QP chose it, beside the measured one")
     ap.add_argument("--contacts", action="store_true", help="every robot link's contact force on a scene object "
                                                            "(not the floor) or on another link, largest first")
+    ap.add_argument("--guard", action="store_true", help="the controller's active barrier rows (lomanip_sim."
+                    "self_collision_guard): each pair's distance and the bound on its acceleration (m/s^2)")
     ap.add_argument("--grip", action="store_true", help="each contact of a hand's arm on the object it holds: "
                     "link, point in the object body's frame, normal and tangential force")
     ap.add_argument("--joints", default="", help="comma-separated G1 joint names: each one's measured and planned "
@@ -267,7 +274,8 @@ def main() -> int:
         sim.step(steps)
         if ex.time >= next_t:
             next_t += args.every
-            print(trace_line(ex, movable, cop=args.cop, grip=args.grip, contacts=args.contacts, joints=joints), flush=True)
+            print(trace_line(ex, movable, cop=args.cop, grip=args.grip, contacts=args.contacts, joints=joints,
+                             guard=args.guard), flush=True)
     print(f"fell: {ex.fell} at t={ex.time:.2f} s" if ex.fell else f"no fall up to t={ex.time:.2f} s")
     return 0
 

@@ -180,3 +180,23 @@ def test_object_rows_are_off_in_and_just_after_a_hand_contact():
     assert free[t < 0.3].all() and free[t > 0.6 + w.g.guard_object_release].all()
     assert not free[(t >= 0.3) & (t <= 0.6 + w.g.guard_object_release)].any()
     assert w._free_of_objects("left_hand").all()
+
+
+def test_exec_trace_prints_the_active_guard_rows():
+    """tools/exec_trace.py --guard: a line names each active pair with its distance."""
+    import importlib.util
+    from pathlib import Path
+
+    from lomanip_sim.execution import Execution
+
+    path = Path(__file__).resolve().parents[2] / "tools" / "exec_trace.py"
+    spec = importlib.util.spec_from_file_location("exec_trace_under_test", path)
+    exec_trace = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(exec_trace)
+    sim, tr = _stand_before_a_box(0.005)
+    ex = Execution(sim, tr)
+    ex.start()
+    sim.step(5)
+    line = exec_trace.trace_line(ex, [], guard=True)
+    assert "guard [right_wrist_yaw_link / box 0." in line
+    assert "guard" not in exec_trace.trace_line(ex, [])
