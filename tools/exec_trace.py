@@ -141,8 +141,8 @@ def trace_line(ex, objects: list[str], cop: bool = False, grip: bool = False, co
             parts.append(f"{name.removesuffix('_joint')} {d.qpos[m.jnt_qposadr[jid]]:+.3f}/{q_ref[j]:+.3f} [{lo:+.2f},{hi:+.2f}]"
                          f" tau {tau:+5.1f}/{lim:.0f}")
     if guard:   # the controller's barrier rows of the last step: pair, distance, bound on its acceleration
-        rows = " ".join(f"[{a} / {b} {100 * gr.distance:.1f} cm >= {gr.lower:+.1f}]" for gr in ex.wbc.guard_rows
-                        for a, b in [gr.pair])
+        rows = " ".join(f"[{' / '.join(gr.pair)} {100 * gr.distance:.1f} cm >= {gr.lower:+.1f}]"
+                        for gr in ex.wbc.guard_rows)
         parts.append(f"guard {rows or 'none'}")
     if contacts:
         parts.append(f"contacts {_object_contacts(ex) or 'none'}")

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from .robot_model import HAND_BODIES
+
 #: the link pairs the G1's meshes let touch across a joint that the TO bounds in joint space only
 HIP_PAIRS: tuple[tuple[str, str], ...] = tuple(
     ("pelvis", f"{side}_{link}_link") for side in ("left", "right") for link in ("hip_roll", "hip_yaw"))
@@ -30,7 +32,7 @@ HIP_PAIRS: tuple[tuple[str, str], ...] = tuple(
 #: a hip link on MuJoCo's meshes, and executed, far_left's swinging left hip struck the hanging left
 #: hand (22 N) and the robot fell (docs/execution.md, session 60)
 HAND_LEG_PAIRS: tuple[tuple[str, str], ...] = tuple(
-    (f"{side}_wrist_yaw_link", f"{side}_{link}_link") for side in ("left", "right")
+    (hand, f"{side}_{link}_link") for side, hand in HAND_BODIES.items()
     for link in ("hip_pitch", "hip_roll", "hip_yaw", "knee"))
 
 

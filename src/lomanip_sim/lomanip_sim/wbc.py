@@ -46,7 +46,7 @@ import numpy as np
 
 from . import frames
 from .robot_model import (FOOT_BODIES, FOOT_CONTACT_POINTS, FOOT_SITES, FOOT_SOLE_OFFSET, G1_JOINT_NAMES,
-                          HAND_COLLISION_HALF_SIZE, HAND_SITES, PELVIS_BODY, TORSO_BODY)
+                          HAND_BODIES, HAND_COLLISION_HALF_SIZE, HAND_SITES, PELVIS_BODY, TORSO_BODY)
 from .contact_forces import LimbForceMeter
 from .hand_approach import approach_lift, retreat_lift, smoothstep
 from .hand_detour import Detour, HandBoxProbe, ObjectsAsObstacles, detour, movable_bodies, static_obstacle_geoms
@@ -636,15 +636,16 @@ class WholeBodyController:
                                          min_distance=self.g.guard_min_distance) if self.g.guard_rate > 0 else None)
         self.object_guard = None
         self._object_pairs: dict[str, list[tuple[str, str]]] = {}
-        self._object_free = {}  # hand -> (N,) bool: its object rows are on (no contact near)
+        self._object_free = {}  # hand -> (N,) bool: its object rows are on at a sample (no contact near)
         objects = movable_bodies(m, root)
         if self.g.guard_rate > 0 and self.g.guard_hand_objects and objects:
             self.object_guard = SelfCollisionGuard(m, (), activation=self.g.guard_activation, rate=self.g.guard_rate,
                                                    min_distance=self.g.guard_object_min_distance)
             for limb in HANDS:
-                body = m.body(int(m.site_bodyid[self.site_id[limb]])).name
+                body = HAND_BODIES[limb.split("_")[0]]
                 self._object_pairs[limb] = [self.object_guard.guard_object(body, b) for b in objects]
-                self._object_free[limb] = self._free_of_objects(limb)
+                free = self._free_of_objects(limb)
+                self._object_free[limb] = free & np.append(free[1:], free[-1])   # at a sample and the next
         self._hand_of_pair = {k: limb for limb, keys in self._object_pairs.items() for k in keys}
         self.guard_rows: list[GuardRow] = []  # the self-collision guard's active rows, last step
 
@@ -1120,32 +1121,22 @@ class WholeBodyController:
                 self._pyramids[key] = rows
         return rows
 
-    def _in_contact(self, limb: str) -> np.ndarray:
-        """(N,) bool: the plan has this limb in a contact phase."""
+    def _in_contact(self, limb: str, before: float = 0.0, after: float = 0.0) -> np.ndarray:
+        """(N,) bool: the plan has this limb in a contact phase, widened by ``before`` / ``after`` s."""
         tr = self.traj
         out = np.zeros(tr.n, bool)
         for ph in tr.phases:
             if limb in ph.contacts:
-                out |= (tr.t >= ph.start) & (tr.t <= ph.end)
+                out |= (tr.t >= ph.start - before) & (tr.t <= ph.end + after)
         return out
 
     def _free_of_objects(self, limb: str) -> np.ndarray:
         """(N,) bool: the hand is in no contact phase and ``guard_object_release`` s past its last one."""
-        tr = self.traj
-        out = np.ones(tr.n, bool)
-        for ph in tr.phases:
-            if limb in ph.contacts:
-                out &= ~((tr.t >= ph.start) & (tr.t <= ph.end + self.g.guard_object_release))
-        return out
+        return ~self._in_contact(limb, after=self.g.guard_object_release)
 
     def _near_contact(self, limb: str) -> np.ndarray:
         """(N,) bool: the hand is in a contact phase or within ``hand_stiff_window`` of one."""
-        tr, win = self.traj, self.g.hand_stiff_window
-        out = np.zeros(tr.n, bool)
-        for ph in tr.phases:
-            if limb in ph.contacts:
-                out |= (tr.t >= ph.start - win) & (tr.t <= ph.end + win)
-        return out
+        return self._in_contact(limb, self.g.hand_stiff_window, self.g.hand_stiff_window)
 
     def _touching(self, data: mujoco.MjData, limb: str, object_id: str) -> bool:
         """True when the hand's collision box has a MuJoCo contact with a geom of ``object_id``."""
@@ -1754,7 +1745,7 @@ class WholeBodyController:
         self.guard_rows = self.guard.rows(data, dofs) if self.guard is not None else []
         if self.object_guard is not None:
             skip = {k for limb, keys in self._object_pairs.items()
-                    if not (self._object_free[limb][i] and self._object_free[limb][min(i + 1, tr.n - 1)]) for k in keys}
+                    if not self._object_free[limb][i] for k in keys}
             rows = self.object_guard.rows(data, dofs, skip)
             for r in rows:   # the hand's own arm keeps it off: as a free hand's task, the row may not move the body
                 r.row = self._on_arm(r.row[None, :], self._hand_of_pair[r.pair])[0]
